@@ -1,0 +1,354 @@
+"""Granular media: the 2D RFT coefficient model alpha(beta, gamma) and its scale zeta.
+
+The 2D model is Li, Zhang & Goldman, Science 339:1408 (2013): the stress on a small plate with
+attack angle beta moving along intrusion angle gamma at depth |z| is alpha(beta, gamma) |z|, with
+
+    alpha_z = sum_{m,n} A_mn cos(2 m beta + n gamma) + B_mn sin(2 m beta + n gamma)
+    alpha_x = sum_{m,n} C_mn cos(2 m beta + n gamma) + D_mn sin(2 m beta + n gamma)
+
+for m in {-1, 0, 1}, n in {0, 1} (their eq. S4 / Table S2). A medium is stored in *generic form*:
+dimensionless coefficients normalised so alpha_z(0, pi/2) = 1 (horizontal plate pushed straight
+down), times the scale zeta [N/m^3]; alpha_medium = zeta * alpha_generic (Li 2013, "scaling factor").
+The out-of-plane coefficient of the 3D extension (Treers, Cao & Stuart, RA-L 2021) is, to first
+order, alpha_y = alpha_x(0, 0); users may supply their own alpha_y(beta).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+from mjrft.units import N_PER_CM3
+
+#: The (m, n) harmonics of Li 2013's first-order Fourier fit, in a fixed order.
+HARMONICS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
+_LETTERS = "ABCD"
+
+AlphaFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+AlphaYFn = Callable[[np.ndarray], np.ndarray]
+
+
+def _parse_key(key: str) -> tuple[str, int]:
+    """'B-11' -> ('B', index of (m=-1, n=1) in HARMONICS)."""
+    letter, rest = key[:1], key[1:]
+    valid = "letter A/B/C/D then m in {-1,0,1} then n in {0,1}, e.g. 'A00', 'B-11', 'D10'"
+    if letter not in _LETTERS or not rest:
+        raise ValueError(f"unknown Fourier coefficient name {key!r}; expected {valid}")
+    try:
+        m, n = int(rest[:-1]), int(rest[-1])
+    except ValueError:
+        raise ValueError(f"unknown Fourier coefficient name {key!r}; expected {valid}") from None
+    if (m, n) not in HARMONICS:
+        raise ValueError(f"unknown Fourier coefficient name {key!r}; expected {valid}")
+    return letter, HARMONICS.index((m, n))
+
+
+@dataclass(frozen=True, eq=False)
+class FourierCoefficients:
+    """Li 2013 Fourier coefficients of alpha_z (A cos, B sin) and alpha_x (C cos, D sin).
+
+    Each of a, b, c, d is a (6,) array over HARMONICS; units are those of the table
+    (dimensionless in generic form).
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    d: np.ndarray
+
+    @classmethod
+    def from_mapping(cls, table: Mapping[str, float], *, source: str = "table") -> FourierCoefficients:
+        """Build from names like {'A00': .206, 'B-11': .055}; missing terms are zero."""
+        arrs = {letter: np.zeros(len(HARMONICS)) for letter in _LETTERS}
+        for key, value in table.items():
+            letter, idx = _parse_key(str(key))
+            v = float(value)
+            if not math.isfinite(v):
+                raise ValueError(f"{source}: coefficient {key} = {value!r} is not finite")
+            arrs[letter][idx] = v
+        return cls(*(arrs[letter] for letter in _LETTERS))
+
+    def as_mapping(self) -> dict[str, float]:
+        """Non-zero coefficients by name ('A00', 'B-11', ...)."""
+        out = {}
+        for letter, arr in zip(_LETTERS, (self.a, self.b, self.c, self.d), strict=True):
+            for (m, n), v in zip(HARMONICS, arr, strict=True):
+                if v != 0.0:
+                    out[f"{letter}{m}{n}"] = float(v)
+        return out
+
+    def scaled(self, factor: float) -> FourierCoefficients:
+        """All coefficients multiplied by factor."""
+        return FourierCoefficients(self.a * factor, self.b * factor, self.c * factor, self.d * factor)
+
+    def _phases(self, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+        mn = np.asarray(HARMONICS, dtype=np.float64)
+        return 2.0 * mn[:, 0] * np.asarray(beta)[..., None] + mn[:, 1] * np.asarray(gamma)[..., None]
+
+    def alpha_z(self, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+        """alpha_z at angles beta, gamma [rad] (broadcast), in the table's units."""
+        ph = self._phases(beta, gamma)
+        return np.cos(ph) @ self.a + np.sin(ph) @ self.b
+
+    def alpha_x(self, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
+        """alpha_x at angles beta, gamma [rad] (broadcast), in the table's units."""
+        ph = self._phases(beta, gamma)
+        return np.cos(ph) @ self.c + np.sin(ph) @ self.d
+
+
+#: Li 2013 generic coefficients (dimensionless; alpha_z(0, pi/2) = 1), Science 339:1408, Fig. 2.
+LI_GENERIC = FourierCoefficients.from_mapping(
+    {
+        "A00": 0.206,
+        "A10": 0.169,
+        "B11": 0.212,
+        "B01": 0.358,
+        "B-11": 0.055,
+        "C11": -0.124,
+        "C01": 0.253,
+        "C-11": 0.007,
+        "D10": 0.088,
+    },
+    source="Li 2013 generic coefficients",
+)
+
+# Grid on which user callables are probed at construction (fail fast, not mid-run).
+_PROBE_N = 73
+
+
+def _probe_grid() -> tuple[np.ndarray, np.ndarray]:
+    beta, gamma = np.meshgrid(
+        np.linspace(-np.pi, 2.0 * np.pi, _PROBE_N), np.linspace(-np.pi, np.pi, _PROBE_N)
+    )
+    return beta.ravel(), gamma.ravel()
+
+
+def _check_callable(fn: object, name: str, args: tuple[np.ndarray, ...]) -> None:
+    if not callable(fn):
+        raise ValueError(f"{name} must be callable, got {type(fn).__name__}")
+    try:
+        out = fn(*args)
+    except Exception as exc:  # noqa: BLE001 - re-raised with context for the user
+        raise ValueError(
+            f"{name} raised {type(exc).__name__}: {exc} when called with numpy arrays of shape "
+            f"{args[0].shape}; it must accept arrays (wrap scalar code with numpy.vectorize)"
+        ) from exc
+    out = np.asarray(out, dtype=np.float64) if not isinstance(out, np.ndarray) else out
+    if out.shape != args[0].shape:
+        raise ValueError(
+            f"{name} returned shape {out.shape} for inputs of shape {args[0].shape}; "
+            "it must return an array of the same shape as its inputs"
+        )
+    if not np.all(np.isfinite(out)):
+        bad = int(np.flatnonzero(~np.isfinite(out))[0])
+        at = ", ".join(f"{a[bad]:.4g}" for a in args)
+        raise ValueError(f"{name} returned a non-finite value ({out[bad]}) at angle(s) ({at}) rad")
+
+
+def _check_zeta(zeta: object, unit: str = "N/m^3") -> float:
+    try:
+        z = float(zeta)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"zeta must be a finite number > 0 in {unit}, got {zeta!r}") from None
+    if not (math.isfinite(z) and z > 0.0):
+        raise ValueError(f"zeta must be a finite number > 0 in {unit}, got {zeta!r}")
+    return z
+
+
+@dataclass(frozen=True, eq=False)
+class Material:
+    """A dry granular medium for RFT: generic-form coefficients times zeta.
+
+    Build with the constructors (``generic``, ``preset``, ``from_table``, ``from_callables``).
+
+    Attributes:
+      name: human-readable label.
+      zeta: scale factor [N/m^3]; alpha_medium = zeta * alpha_generic.
+      fourier: generic-form Fourier coefficients, or None when the model is given by callables.
+      alpha_x_fn, alpha_z_fn: generic-form callables (beta, gamma) -> alpha, or None.
+      alpha_y_fn: generic-form callable beta -> alpha_y, or None for the constant ``alpha_y0``.
+      alpha_y0: constant generic out-of-plane coefficient used when alpha_y_fn is None.
+      source: where the numbers come from.
+    """
+
+    name: str
+    zeta: float
+    fourier: FourierCoefficients | None = None
+    alpha_x_fn: AlphaFn | None = field(default=None, repr=False)
+    alpha_z_fn: AlphaFn | None = field(default=None, repr=False)
+    alpha_y_fn: AlphaYFn | None = field(default=None, repr=False)
+    alpha_y0: float = 0.0
+    source: str = ""
+
+    # ----------------------------------------------------------------- constructors
+    @classmethod
+    def generic(
+        cls, zeta: float | None = None, *, zeta_n_per_cm3: float | None = None, name: str = ""
+    ) -> Material:
+        """Li 2013 generic coefficients scaled by zeta.
+
+        Args:
+          zeta: scale [N/m^3] (SI). Give exactly one of zeta and zeta_n_per_cm3.
+          zeta_n_per_cm3: the same scale in N/cm^3, the unit of published tables.
+        """
+        if (zeta is None) == (zeta_n_per_cm3 is None):
+            raise ValueError("give exactly one of zeta [N/m^3] and zeta_n_per_cm3 [N/cm^3]")
+        if zeta is None:
+            z = _check_zeta(zeta_n_per_cm3, "N/cm^3") * N_PER_CM3
+        else:
+            z = _check_zeta(zeta)
+        return cls._from_fourier(
+            LI_GENERIC, z, name or f"generic (zeta={z / N_PER_CM3:g} N/cm^3)", "Li 2013 generic"
+        )
+
+    @classmethod
+    def preset(cls, name: str) -> Material:
+        """A named medium; see ``PRESETS`` for the names and their sources."""
+        try:
+            make = PRESETS[name]
+        except (KeyError, TypeError):
+            raise ValueError(
+                f"unknown material preset {name!r}; valid names: {', '.join(sorted(PRESETS))}"
+            ) from None
+        return make()
+
+    @classmethod
+    def from_table(
+        cls, table: Mapping[str, float], *, unit: float = N_PER_CM3, name: str = "custom table"
+    ) -> Material:
+        """A medium from its full (dimensional) Fourier coefficient table.
+
+        Args:
+          table: coefficients by name ('A00', 'A10', 'B11', 'B-11', 'C01', 'D10', ...), in `unit`.
+          unit: the table's unit in N/m^3 (default N/cm^3, as Li 2013 publishes).
+        The table is stored in generic form: zeta = alpha_z(0, pi/2) of the table, in N/m^3.
+        """
+        u = _check_zeta(unit, "N/m^3 per table unit")
+        coeffs = FourierCoefficients.from_mapping(table, source=name)
+        az_ref = float(coeffs.alpha_z(0.0, np.pi / 2))
+        if not az_ref > 0.0:
+            raise ValueError(
+                f"{name}: alpha_z(beta=0, gamma=pi/2) = {az_ref:g} must be > 0 "
+                "(a horizontal plate pushed down must be resisted)"
+            )
+        return cls._from_fourier(coeffs.scaled(1.0 / az_ref), az_ref * u, name, name)
+
+    @classmethod
+    def from_callables(
+        cls,
+        alpha_x: AlphaFn,
+        alpha_z: AlphaFn,
+        zeta: float,
+        alpha_y: AlphaYFn | None = None,
+        *,
+        name: str = "custom callables",
+    ) -> Material:
+        """A medium from user 2D model functions in generic (dimensionless) form, times zeta.
+
+        Args:
+          alpha_x, alpha_z: vectorized callables (beta, gamma) -> array of the same shape; angles
+            in rad, beta the plate attack angle, gamma the intrusion angle (Li 2013 conventions).
+          zeta: scale [N/m^3].
+          alpha_y: optional vectorized callable beta -> out-of-plane coefficient; default is the
+            constant alpha_x(0, 0) (first-order 3D RFT, Treers et al. 2021).
+        The callables are probed on a grid of angles now, so shape errors and non-finite values
+        are reported at construction rather than mid-simulation.
+        """
+        z = _check_zeta(zeta)
+        beta, gamma = _probe_grid()
+        _check_callable(alpha_x, "alpha_x(beta, gamma)", (beta, gamma))
+        _check_callable(alpha_z, "alpha_z(beta, gamma)", (beta, gamma))
+        if alpha_y is not None:
+            _check_callable(alpha_y, "alpha_y(beta)", (beta,))
+            ay0 = 0.0
+        else:
+            ay0 = float(np.asarray(alpha_x(np.zeros(1), np.zeros(1)), dtype=np.float64)[0])
+        return cls(
+            name=name,
+            zeta=z,
+            alpha_x_fn=alpha_x,
+            alpha_z_fn=alpha_z,
+            alpha_y_fn=alpha_y,
+            alpha_y0=ay0,
+            source="user callables",
+        )
+
+    @classmethod
+    def _from_fourier(cls, coeffs: FourierCoefficients, zeta: float, name: str, source: str):
+        return cls(
+            name=name,
+            zeta=zeta,
+            fourier=coeffs,
+            alpha_y0=float(coeffs.alpha_x(0.0, 0.0)),
+            source=source,
+        )
+
+    # ----------------------------------------------------------------- evaluation
+    def alpha_generic(
+        self, beta: np.ndarray, gamma: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Generic-form (alpha_x, alpha_y, alpha_z) at angles beta, gamma [rad] (broadcast)."""
+        beta, gamma = np.broadcast_arrays(
+            np.asarray(beta, dtype=np.float64), np.asarray(gamma, dtype=np.float64)
+        )
+        if self.fourier is not None:
+            ax, az = self.fourier.alpha_x(beta, gamma), self.fourier.alpha_z(beta, gamma)
+        else:
+            ax = np.asarray(self.alpha_x_fn(beta, gamma), dtype=np.float64)
+            az = np.asarray(self.alpha_z_fn(beta, gamma), dtype=np.float64)
+        if self.alpha_y_fn is not None:
+            ay = np.asarray(self.alpha_y_fn(beta), dtype=np.float64)
+        else:
+            ay = np.full(beta.shape, self.alpha_y0)
+        return ax, ay, az
+
+    def alpha(self, beta: np.ndarray, gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Dimensional (alpha_x, alpha_y, alpha_z) [N/m^3] at angles beta, gamma [rad]."""
+        ax, ay, az = self.alpha_generic(beta, gamma)
+        return self.zeta * ax, self.zeta * ay, self.zeta * az
+
+
+def _glass_beads() -> Material:
+    # Treers, Cao & Stuart (RA-L 2021): 0.8 mm glass beads, zeta = 0.33 N/cm^3 with Li's generic set.
+    return Material.generic(zeta_n_per_cm3=0.33, name="glass_beads")
+
+
+# Li, Zhang & Goldman, Science 339:1408 (2013), supplementary Table S2: the leading first-order
+# Fourier terms of alpha_z (A, B) and alpha_x (C, D) for poppy seeds, in N/cm^3, loosely packed
+# (LP) and closely packed (CP). Values as transcribed in public RFT codes (e.g. the Isaac Lab soft
+# contact models); Li's generic set is the average of such tables normalised to alpha_z(0, pi/2).
+POPPY_SEEDS_LP_N_PER_CM3 = {
+    "A00": 0.051, "A10": 0.047, "B11": 0.053, "B01": 0.083, "B-11": 0.020,
+    "C11": -0.026, "C01": 0.057, "C-11": 0.0, "D10": 0.025,
+}  # fmt: skip
+POPPY_SEEDS_CP_N_PER_CM3 = {
+    "A00": 0.094, "A10": 0.092, "B11": 0.092, "B01": 0.151, "B-11": 0.035,
+    "C11": -0.039, "C01": 0.086, "C-11": 0.018, "D10": 0.046,
+}  # fmt: skip
+
+
+def _poppy_lp() -> Material:
+    return Material.from_table(POPPY_SEEDS_LP_N_PER_CM3, name="poppy_seeds_lp")
+
+
+def _poppy_cp() -> Material:
+    return Material.from_table(POPPY_SEEDS_CP_N_PER_CM3, name="poppy_seeds_cp")
+
+
+def _li_generic_unit() -> Material:
+    return Material.generic(zeta_n_per_cm3=1.0, name="generic_1ncm3")
+
+
+#: Named media for ``Material.preset``: name -> constructor.
+PRESETS: Mapping[str, Callable[[], Material]] = MappingProxyType(
+    {
+        "glass_beads": _glass_beads,
+        "poppy_seeds_lp": _poppy_lp,
+        "poppy_seeds_cp": _poppy_cp,
+        "generic_1ncm3": _li_generic_unit,
+    }
+)

@@ -1,0 +1,202 @@
+"""The 3D granular RFT force kernel: pure functions over element arrays (world frame, SI).
+
+Implements DESIGN.md section 2 (Treers, Cao & Stuart, RA-L 2021, on Li et al., Science 2013).
+Angles beta and gamma never exist here for Fourier-form media: their sines and cosines are
+normalised vector components and the Fourier terms follow from angle-addition identities. User
+callables receive explicit angles. This module imports no mujoco and holds no state; it is the one
+place a compiled kernel replaces.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mjrft.material import HARMONICS, Material
+
+#: |n_z| at or above this marks a nearly horizontal plate (DESIGN 2.2): its frame comes from v.
+HORIZONTAL_PLATE_NZ = 1.0 - 1.0e-3
+
+# Fitted scaling functions of the 3D decomposition (Treers et al. 2021, DESIGN 2.7); both map
+# [0, 1] -> [0, 1] with f(0) = 0 and f(1) = 1.
+_F1_GAIN, _F1_SLOPE, _F1_SHIFT, _F1_NORM = (
+    0.440850096954369,
+    3.62263982880971,
+    1.60910808139526,
+    0.832324700111401,
+)
+_F23_GAIN, _F23_SLOPE, _F23_SHIFT, _F23_NORM = (
+    1.99392673405210,
+    1.61146827229181,
+    0.973746396532650,
+    5.81083560370960,
+)
+
+
+def f1(vt: np.ndarray) -> np.ndarray:
+    """Out-of-plane scaling f1 of |v1| (component of the unit velocity along e1), in [0, 1]."""
+    return _F1_GAIN * (np.tanh(_F1_SLOPE * vt - _F1_SHIFT) + np.tanh(_F1_SHIFT)) / _F1_NORM
+
+
+def f23(vn: np.ndarray) -> np.ndarray:
+    """In-plane scaling f23 of |v23| (unit velocity within the plate's vertical plane), in [0, 1]."""
+    return _F23_GAIN * (np.arctanh(_F23_SLOPE * vn - _F23_SHIFT) + np.arctanh(_F23_SHIFT)) / _F23_NORM
+
+
+def _unit_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors and norms of the rows of x (n, 3), free of overflow/underflow for finite x.
+
+    Rows of zero length give a zero vector and norm 0.
+    """
+    scale = np.abs(x).max(axis=1)
+    safe = np.where(scale > 0.0, scale, 1.0)
+    y = x / safe[:, None]
+    r = np.sqrt(np.einsum("ij,ij->i", y, y))
+    u = y / np.where(r > 0.0, r, 1.0)[:, None]
+    return u, scale * r
+
+
+def _as_rows(name: str, x: np.ndarray, n: int | None) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3 or (n is not None and a.shape[0] != n):
+        want = "(n, 3)" if n is None else f"({n}, 3)"
+        raise ValueError(f"element_forces: {name} has shape {a.shape}, expected {want}")
+    return a
+
+
+def _check_inputs(pos, normal, area, vel, surface_z):
+    pos = _as_rows("pos", pos, None)
+    n = pos.shape[0]
+    normal = _as_rows("normal", normal, n)
+    vel = _as_rows("vel", vel, n)
+    area = np.asarray(area, dtype=np.float64)
+    if area.shape != (n,):
+        raise ValueError(f"element_forces: area has shape {area.shape}, expected ({n},)")
+    for name, a in (("pos", pos), ("normal", normal), ("area", area), ("vel", vel)):
+        if not np.all(np.isfinite(a)):
+            i = int(np.flatnonzero(~np.isfinite(a).reshape(n, -1).all(axis=1))[0])
+            raise ValueError(f"element_forces: {name} of element {i} is not finite: {a[i]}")
+    if np.any(area < 0.0):
+        i = int(np.flatnonzero(area < 0.0)[0])
+        raise ValueError(f"element_forces: area of element {i} is negative ({area[i]}); need >= 0")
+    surface_z = float(surface_z)
+    if not np.isfinite(surface_z):
+        raise ValueError(f"element_forces: surface_z must be finite, got {surface_z}")
+    return pos, normal, area, vel, surface_z
+
+
+def element_forces(
+    pos: np.ndarray,
+    normal: np.ndarray,
+    area: np.ndarray,
+    vel: np.ndarray,
+    material: Material,
+    surface_z: float = 0.0,
+) -> np.ndarray:
+    """RFT force on each surface element, world frame.
+
+    Args:
+      pos: (n, 3) element centroids, world frame [m]; world z is up.
+      normal: (n, 3) outward normals, world frame (any positive length).
+      area: (n,) element areas [m^2], >= 0.
+      vel: (n, 3) centroid velocities, world frame [m/s].
+      material: the medium.
+      surface_z: height of the free surface [m]; depth = surface_z - z.
+    Returns:
+      (n, 3) forces, world frame [N]. Zero for elements above the surface, trailing (n . v <= 0)
+      or at rest. Finite for every finite input whose force magnitude is representable.
+    Raises:
+      ValueError on mismatched shapes, non-finite inputs, negative areas or zero-length normals.
+    """
+    pos, normal, area, vel, surface_z = _check_inputs(pos, normal, area, vel, surface_z)
+    n_hat, n_len = _unit_rows(normal)
+    if np.any(n_len == 0.0):
+        i = int(np.flatnonzero(n_len == 0.0)[0])
+        raise ValueError(f"element_forces: normal of element {i} has zero length")
+    out = np.zeros_like(pos)
+    depth = surface_z - pos[:, 2]
+    v_hat, speed = _unit_rows(vel)
+    # DESIGN 2.1: only submerged, leading, moving elements feel force.
+    active = (depth > 0.0) & (speed > 0.0) & (np.einsum("ij,ij->i", n_hat, v_hat) > 0.0)
+    idx = np.flatnonzero(active)
+    if idx.size == 0:
+        return out
+    out[idx] = _active_forces(n_hat[idx], v_hat[idx], depth[idx] * area[idx], material)
+    return out
+
+
+def _frame(n_hat: np.ndarray, v_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal unit e2 (x, y) of DESIGN 2.2 for each element; e1 = e2 x z = (e2y, -e2x, 0)."""
+    nx, ny, nz = n_hat.T
+    flat = np.abs(nz) >= HORIZONTAL_PLATE_NZ
+    hx = np.where(flat, v_hat[:, 0], nx)
+    hy = np.where(flat, v_hat[:, 1], ny)
+    h = np.hypot(hx, hy)
+    none = h == 0.0  # horizontal plate moving exactly vertically: world x
+    hs = np.where(none, 1.0, h)
+    return np.where(none, 1.0, hx / hs), np.where(none, 0.0, hy / hs)
+
+
+def _active_forces(
+    n_hat: np.ndarray, v_hat: np.ndarray, depth_area: np.ndarray, material: Material
+) -> np.ndarray:
+    """Forces [N] on submerged leading elements (unit normals/velocities, depth*area [m^3])."""
+    e2x, e2y = _frame(n_hat, v_hat)
+    # Components of v^ in the orthonormal frame (e1, e2, z): v^ = a e1 + b e2 + c z.
+    a = v_hat[:, 0] * e2y - v_hat[:, 1] * e2x
+    b = v_hat[:, 0] * e2x + v_hat[:, 1] * e2y
+    c = v_hat[:, 2]
+    vt = np.abs(a)
+    vn = np.hypot(b, c)
+    # Plate direction in the (e2, z) plane; beta = atan2(nz, n2) + pi/2 (DESIGN 2.4).
+    n2 = n_hat[:, 0] * e2x + n_hat[:, 1] * e2y
+    nz = n_hat[:, 2]
+    rn = np.hypot(n2, nz)
+    cos_b, sin_b = -nz / rn, n2 / rn
+    # gamma = -atan2(c, b); atan2(0, 0) = 0 gives gamma = 0 when v^ is along e1.
+    moving_in_plane = vn > 0.0
+    vns = np.where(moving_in_plane, vn, 1.0)
+    cos_g = np.where(moving_in_plane, b / vns, 1.0)
+    sin_g = np.where(moving_in_plane, -c / vns, 0.0)
+
+    if material.fourier is not None:
+        ax, az = _fourier_alphas(material, cos_b, sin_b, cos_g, sin_g)
+        if material.alpha_y_fn is None:
+            ay = material.alpha_y0
+        else:
+            ay = material.alpha_y_fn(np.arctan2(nz, n2) + 0.5 * np.pi)
+    else:
+        beta = np.arctan2(nz, n2) + 0.5 * np.pi
+        gamma = -np.arctan2(c, b)
+        ax, ay, az = material.alpha_generic(beta, gamma)
+
+    # DESIGN 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+    s = material.zeta * depth_area
+    g1 = -s * f1(vt) * ay * np.sign(a)
+    g23 = s * f23(vn)
+    gx = -g23 * ax
+    out = np.empty_like(n_hat)
+    out[:, 0] = g1 * e2y + gx * e2x
+    out[:, 1] = -g1 * e2x + gx * e2y
+    out[:, 2] = g23 * az
+    return out
+
+
+def _fourier_alphas(
+    material: Material, cos_b: np.ndarray, sin_b: np.ndarray, cos_g: np.ndarray, sin_g: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Generic alpha_x, alpha_z from angle sines/cosines via angle-addition identities."""
+    c2b = cos_b * cos_b - sin_b * sin_b
+    s2b = 2.0 * sin_b * cos_b
+    cos_t = np.empty((len(cos_b), len(HARMONICS)))
+    sin_t = np.empty_like(cos_t)
+    for k, (m, n) in enumerate(HARMONICS):
+        # cos/sin of 2 m beta (m in {-1, 0, 1}) then adding n gamma (n in {0, 1}).
+        cm = np.ones_like(c2b) if m == 0 else c2b
+        sm = np.zeros_like(s2b) if m == 0 else m * s2b
+        if n == 0:
+            cos_t[:, k], sin_t[:, k] = cm, sm
+        else:
+            cos_t[:, k] = cm * cos_g - sm * sin_g
+            sin_t[:, k] = sm * cos_g + cm * sin_g
+    co = material.fourier
+    return cos_t @ co.c + sin_t @ co.d, cos_t @ co.a + sin_t @ co.b
