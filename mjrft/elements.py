@@ -37,7 +37,9 @@ class ElementSet:
             if got != want:
                 raise ValueError(f"ElementSet.{name} has shape {got}, expected {want}")
         if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
-            raise ValueError(f"ElementSet.vertices has shape {self.vertices.shape}, expected (m, 3)")
+            raise ValueError(
+                f"ElementSet.vertices has shape {self.vertices.shape}, expected (m, 3)"
+            )
         for arr in (self.centroids, self.normals, self.areas, self.vertices):
             arr.setflags(write=False)
         self.faces.setflags(write=False)

@@ -8,7 +8,8 @@ attack angle beta moving along intrusion angle gamma at depth |z| is alpha(beta,
 
 for m in {-1, 0, 1}, n in {0, 1} (their eq. S4 / Table S2). A medium is stored in *generic form*:
 dimensionless coefficients normalised so alpha_z(0, pi/2) = 1 (horizontal plate pushed straight
-down), times the scale zeta [N/m^3]; alpha_medium = zeta * alpha_generic (Li 2013, "scaling factor").
+down), times the scale zeta [N/m^3]; alpha_medium = zeta * alpha_generic (Li 2013's "scaling
+factor").
 The out-of-plane coefficient of the 3D extension (Treers, Cao & Stuart, RA-L 2021) is, to first
 order, alpha_y = alpha_x(0, 0); users may supply their own alpha_y(beta).
 """
@@ -61,7 +62,9 @@ class FourierCoefficients:
     d: np.ndarray
 
     @classmethod
-    def from_mapping(cls, table: Mapping[str, float], *, source: str = "table") -> FourierCoefficients:
+    def from_mapping(
+        cls, table: Mapping[str, float], *, source: str = "table"
+    ) -> FourierCoefficients:
         """Build from names like {'A00': .206, 'B-11': .055}; missing terms are zero."""
         arrs = {letter: np.zeros(len(HARMONICS)) for letter in _LETTERS}
         for key, value in table.items():
@@ -83,11 +86,15 @@ class FourierCoefficients:
 
     def scaled(self, factor: float) -> FourierCoefficients:
         """All coefficients multiplied by factor."""
-        return FourierCoefficients(self.a * factor, self.b * factor, self.c * factor, self.d * factor)
+        return FourierCoefficients(
+            self.a * factor, self.b * factor, self.c * factor, self.d * factor
+        )
 
     def _phases(self, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
         mn = np.asarray(HARMONICS, dtype=np.float64)
-        return 2.0 * mn[:, 0] * np.asarray(beta)[..., None] + mn[:, 1] * np.asarray(gamma)[..., None]
+        return (
+            2.0 * mn[:, 0] * np.asarray(beta)[..., None] + mn[:, 1] * np.asarray(gamma)[..., None]
+        )
 
     def alpha_z(self, beta: np.ndarray, gamma: np.ndarray) -> np.ndarray:
         """alpha_z at angles beta, gamma [rad] (broadcast), in the table's units."""
@@ -132,7 +139,7 @@ def _check_callable(fn: object, name: str, args: tuple[np.ndarray, ...]) -> None
         raise ValueError(f"{name} must be callable, got {type(fn).__name__}")
     try:
         out = fn(*args)
-    except Exception as exc:  # noqa: BLE001 - re-raised with context for the user
+    except Exception as exc:
         raise ValueError(
             f"{name} raised {type(exc).__name__}: {exc} when called with numpy arrays of shape "
             f"{args[0].shape}; it must accept arrays (wrap scalar code with numpy.vectorize)"
@@ -306,14 +313,16 @@ class Material:
             ay = np.full(beta.shape, self.alpha_y0)
         return ax, ay, az
 
-    def alpha(self, beta: np.ndarray, gamma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def alpha(
+        self, beta: np.ndarray, gamma: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Dimensional (alpha_x, alpha_y, alpha_z) [N/m^3] at angles beta, gamma [rad]."""
         ax, ay, az = self.alpha_generic(beta, gamma)
         return self.zeta * ax, self.zeta * ay, self.zeta * az
 
 
 def _glass_beads() -> Material:
-    # Treers, Cao & Stuart (RA-L 2021): 0.8 mm glass beads, zeta = 0.33 N/cm^3 with Li's generic set.
+    # Treers, Cao & Stuart (RA-L 2021): 0.8 mm glass beads, zeta = 0.33 N/cm^3, Li's generic set.
     return Material.generic(zeta_n_per_cm3=0.33, name="glass_beads")
 
 

@@ -38,8 +38,10 @@ def f1(vt: np.ndarray) -> np.ndarray:
 
 
 def f23(vn: np.ndarray) -> np.ndarray:
-    """In-plane scaling f23 of |v23| (unit velocity within the plate's vertical plane), in [0, 1]."""
-    return _F23_GAIN * (np.arctanh(_F23_SLOPE * vn - _F23_SHIFT) + np.arctanh(_F23_SHIFT)) / _F23_NORM
+    """In-plane scaling f23 of |v23| (unit velocity in the plate's vertical plane), in [0, 1]."""
+    return (
+        _F23_GAIN * (np.arctanh(_F23_SLOPE * vn - _F23_SHIFT) + np.arctanh(_F23_SHIFT)) / _F23_NORM
+    )
 
 
 def _unit_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

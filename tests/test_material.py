@@ -51,7 +51,7 @@ def test_from_callables_default_alpha_y():
         lambda b, g: 0.2 + 0 * b + 0.1 * np.cos(g), lambda b, g: 1 + 0 * b, 1e5
     )
     assert m.alpha_y0 == pytest.approx(0.3)
-    ax, ay, az = m.alpha_generic(np.array([0.5]), np.array([0.2]))
+    _, ay, _ = m.alpha_generic(np.array([0.5]), np.array([0.2]))
     assert ay[0] == pytest.approx(0.3)
 
 
@@ -74,7 +74,9 @@ def ok(b, g):
         (lambda: mjrft.Material.from_callables(42, ok, 1.0), "alpha_x.*callable"),
         (lambda: mjrft.Material.from_callables(ok, lambda b, g: 1.0, 1.0), "alpha_z.*shape"),
         (
-            lambda: mjrft.Material.from_callables(ok, lambda b, g: np.where(g > 3, np.nan, 1 + 0 * b), 1.0),
+            lambda: mjrft.Material.from_callables(
+                ok, lambda b, g: np.where(g > 3, np.nan, 1 + 0 * b), 1.0
+            ),
             "alpha_z.*non-finite",
         ),
         (

@@ -173,14 +173,30 @@ def test_kernel_matches_reference_loop(material_name):
             2.0e5,
         ),
         "table": mjrft.Material.from_table(
-            {"A00": 0.05, "A10": 0.04, "A-10": 0.01, "A01": 0.02, "B11": 0.05, "B01": 0.09,
-             "B-11": 0.01, "B10": 0.02, "C11": -0.03, "C01": 0.06, "C-11": 0.002, "C00": 0.01,
-             "D10": 0.02, "D01": 0.01, "D-11": 0.005}  # fmt: skip
+            {
+                "A00": 0.05,
+                "A10": 0.04,
+                "A-10": 0.01,
+                "A01": 0.02,
+                "B11": 0.05,
+                "B01": 0.09,
+                "B-11": 0.01,
+                "B10": 0.02,
+                "C11": -0.03,
+                "C01": 0.06,
+                "C-11": 0.002,
+                "C00": 0.01,
+                "D10": 0.02,
+                "D01": 0.01,
+                "D-11": 0.005,
+            }
         ),
         "alpha_y": mjrft.Material.from_callables(
-            lambda b, g: 0.25 * np.cos(g), lambda b, g: 0.5 + 0.5 * np.sin(g), 1e6,
+            lambda b, g: 0.25 * np.cos(g),
+            lambda b, g: 0.5 + 0.5 * np.sin(g),
+            1e6,
             alpha_y=lambda b: 0.1 + 0.05 * np.cos(2 * b),
-        ),  # fmt: skip
+        ),
     }
     m = materials[material_name]
     rng = np.random.default_rng(7)

@@ -1,0 +1,117 @@
+"""Rigid-body and trajectory evaluation against direct element sums."""
+
+import numpy as np
+import pytest
+
+import mjrft
+from mjrft.body import body_wrench, quat_to_mat, trajectory_wrenches
+
+GLASS = mjrft.Material.preset("glass_beads")
+
+
+def octahedron(size=0.02):
+    v = size * np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
+    f = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    return mjrft.ElementSet.from_triangles(v + [0.003, -0.002, 0.001], np.array(f))
+
+
+def random_rotation(rng):
+    q = rng.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+def test_quaternion_convention_matches_mujoco():
+    mujoco = pytest.importorskip("mujoco")
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        q = random_rotation(rng)
+        m = np.zeros(9)
+        mujoco.mju_quat2Mat(m, q)
+        np.testing.assert_allclose(quat_to_mat(q), m.reshape(3, 3), atol=1e-14)
+
+
+def test_body_wrench_is_element_sum_and_moment_transfers():
+    rng = np.random.default_rng(1)
+    es = octahedron()
+    for _ in range(20):
+        q = random_rotation(rng)
+        r = quat_to_mat(q)
+        pos = np.array([0.01, 0.02, -0.015])
+        v, w = rng.normal(size=3) * 0.05, rng.normal(size=3)
+        p = es.centroids @ r.T + pos
+        n = es.normals @ r.T
+        vel = v + np.cross(w, p - pos)
+        f = mjrft.element_forces(p, n, es.areas, vel, GLASS)
+        wr = body_wrench(es, pos, q, v, w, GLASS)
+        np.testing.assert_allclose(wr.force, f.sum(0), rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(wr.moment, np.cross(p - pos, f).sum(0), rtol=1e-12, atol=1e-15)
+        c = np.array([0.1, -0.3, 0.2])
+        wc = body_wrench(es, pos, r, v, w, GLASS, point=c)
+        np.testing.assert_allclose(wc.force, wr.force, rtol=1e-12)
+        np.testing.assert_allclose(
+            wc.moment, wr.moment + np.cross(pos - c, wr.force), rtol=1e-9, atol=1e-15
+        )
+
+
+def test_trajectory_equals_pointwise_evaluation():
+    rng = np.random.default_rng(2)
+    es = octahedron()
+    t = 37
+    pos = rng.normal(scale=0.01, size=(t, 3)) - [0, 0, 0.02]
+    quats = np.array([random_rotation(rng) for _ in range(t)])
+    v, w = rng.normal(size=(t, 3)), rng.normal(size=(t, 3))
+    pts = rng.normal(size=(t, 3))
+    traj = trajectory_wrenches(es, pos, quats, v, w, GLASS, points=pts)
+    traj_m = trajectory_wrenches(es, pos, quat_to_mat(quats), v, w, GLASS, points=pts)
+    for i in range(t):
+        one = body_wrench(es, pos[i], quats[i], v[i], w[i], GLASS, point=pts[i])
+        np.testing.assert_allclose(traj.force[i], one.force, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(traj.moment[i], one.moment, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(traj_m.force, traj.force, rtol=1e-12, atol=1e-15)
+
+
+def test_trajectory_chunking_does_not_change_results(monkeypatch):
+    rng = np.random.default_rng(3)
+    es = octahedron()
+    t = 50
+    args = (
+        rng.normal(scale=0.01, size=(t, 3)) - [0, 0, 0.02],
+        np.array([random_rotation(rng) for _ in range(t)]),
+        rng.normal(size=(t, 3)),
+        rng.normal(size=(t, 3)),
+        GLASS,
+    )
+    whole = trajectory_wrenches(es, *args)
+    monkeypatch.setattr("mjrft.body._CHUNK_ELEMENTS", 20)
+    chunked = trajectory_wrenches(es, *args)
+    np.testing.assert_array_equal(whole.force, chunked.force)
+
+
+def test_above_surface_body_feels_nothing():
+    es = octahedron()
+    wr = body_wrench(es, [0, 0, 0.05], np.eye(3), [0, 0, -1.0], [1.0, 0, 0], GLASS)
+    assert np.all(wr.force == 0) and np.all(wr.moment == 0)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"position": [0, 0]}, "position has shape"),
+        ({"rotation": np.zeros(4)}, "quaternion must be finite and non-zero"),
+        ({"rotation": np.eye(2)}, "rotation has shape"),
+        ({"lin_vel": [0, np.nan, 0]}, "lin_vel must be finite"),
+        ({"ang_vel": [0, 0]}, "ang_vel has shape"),
+    ],
+)
+def test_body_wrench_bad_input(kwargs, match):
+    args = {
+        "elements": octahedron(),
+        "position": [0, 0, -0.1],
+        "rotation": np.eye(3),
+        "lin_vel": [0, 0, -1.0],
+        "ang_vel": [0, 0, 0.0],
+        "material": GLASS,
+    }
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        body_wrench(**args)
