@@ -7,14 +7,27 @@ differences). Two ways to apply it:
 
 * explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d)``; ``mj_step`` — the
   wrench is held over the step (all RK4 stages see the same force);
-* installed: ``with field.installed(): mj_step(...)`` — the wrench is recomputed in every forward
-  pass (each RK4 stage sees its own state) and added to ``qfrc_passive`` through MuJoCo's passive
-  callback, so ``xfrc_applied`` stays entirely the user's (viewer perturbations, controllers).
+* installed: ``with field.installed(): mj_step(...)`` — in every forward pass (each RK4 stage sees
+  its own state) the intruding bodies' rows of ``xfrc_applied`` are set to the user's part plus
+  that pass's RFT wrench.
+
+Why ``xfrc_applied`` and not ``qfrc_passive``: MuJoCo's force/torque sensors (load cells) see
+external body forces only through ``cfrc_ext``, which is built from ``xfrc_applied`` and contacts.
+A wrench added to ``qfrc_passive`` moves the bodies but is invisible to every load cell.
+
+How the user's part survives: per MjData the field remembers the user's part of each intruding
+row and what it wrote there. A row that no longer holds what the field wrote was assigned by the
+user (a controller, the viewer's perturbation), and that value becomes the user's part; otherwise
+the user's part is unchanged. So user forces are never lost or counted twice, for any number of
+forward passes per step. Between steps the rows hold user + RFT (``user_xfrc`` gives the user's
+part), and leaving ``installed()`` restores the user's values.
 """
 
 from __future__ import annotations
 
 import contextlib
+import weakref
+from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -24,7 +37,7 @@ import numpy as np
 from mjrft import _callback
 from mjrft.elements import ElementSet
 from mjrft.material import Material
-from mjrft.rft import element_forces
+from mjrft.rft import unit_normal_forces
 from mjrft.scene import Intruder, Scene, geom_elements, scene_from_model
 
 
@@ -66,39 +79,14 @@ class ElementState:
     force: np.ndarray
 
 
-def _dof_chain(model: mujoco.MjModel, body: int) -> np.ndarray:
-    """Dofs that move `body`: its own and all its ancestors', deepest first."""
-    b = body
-    while b > 0 and model.body_dofnum[b] == 0:
-        b = model.body_parentid[b]
-    chain = []
-    j = model.body_dofadr[b] + model.body_dofnum[b] - 1 if b > 0 else -1
-    while j >= 0:
-        chain.append(j)
-        j = model.dof_parentid[j]
-    return np.array(chain, dtype=np.int64)
-
-
-def add_wrench(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    body: int,
-    wrench: np.ndarray,
-    dofs: np.ndarray,
-    qfrc: np.ndarray,
-) -> None:
-    """qfrc += J^T wrench for a world-frame (force, torque) at the body's CoM (``mj_applyFT``).
-
-    Uses the com-based dof axes ``cdof`` ([rot, lin], lin at the root's subtree CoM, like
-    ``cvel``): the generalized force of dof j is cdof_rot_j . (tau + (p - c) x f) + cdof_lin_j . f.
-    """
-    if dofs.size == 0:
-        return
-    f, tau = wrench[:3], wrench[3:]
-    c = data.subtree_com[model.body_rootid[body]]
-    tau_c = tau + np.cross(data.xipos[body] - c, f)
-    cd = data.cdof[dofs]
-    qfrc[dofs] += cd[:, :3] @ tau_c + cd[:, 3:] @ f
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b for (3,) or (n, 3) operands (np.cross is slow on small arrays)."""
+    a, b = np.broadcast_arrays(a, b)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -107,19 +95,31 @@ def _quat_mat(q: np.ndarray) -> np.ndarray:
     return m.reshape(3, 3)
 
 
+#: How many past writes of xfrc_applied rows the field remembers, to recognise MjData copies.
+XFRC_HISTORY = 100_000
+
+
 class GranularField:
     """RFT force field bound to one compiled MjModel.
 
     Args:
       model: compiled model whose ``<custom>`` describes the scene (``mjrft.scene``).
       material: overrides the MJCF material if given.
+      n_triangles: overrides the triangle count of every primitive geom (MJCF ``prm`` and
+        ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
     Raises:
       mjrft.scene.SceneError (a ValueError) naming the geom or field at fault.
     """
 
-    def __init__(self, model: mujoco.MjModel, material: Material | None = None) -> None:
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        material: Material | None = None,
+        *,
+        n_triangles: int | None = None,
+    ) -> None:
         self.model = model
-        self.scene: Scene = scene_from_model(model, material)
+        self.scene: Scene = scene_from_model(model, material, n_triangles=n_triangles)
         self.material = self.scene.material
         self.surface_z = self.scene.surface_z
         self.region = self.scene.region
@@ -136,10 +136,13 @@ class GranularField:
             self._pack(b, items) for b, items in sorted(by_body.items())
         )
         self.body_ids = np.array([be.body for be in self.bodies], dtype=np.int64)
-        self._dof_chains = {int(b): _dof_chain(model, int(b)) for b in self.body_ids}
         self._body_names = {be.body: be.name for be in self.bodies}
         #: (nbody, 6) wrench of the most recent forward pass of the installed field.
         self.last_wrench = np.zeros((model.nbody, 6))
+        # Per MjData address: (weakref to it, user part of the intruding rows, rows written).
+        self._xfrc_state: dict[int, tuple[weakref.ref, np.ndarray, np.ndarray]] = {}
+        # Exact bytes of recently written rows -> the user part behind them (for MjData copies).
+        self._written_history: OrderedDict[bytes, np.ndarray] = OrderedDict()
 
     def _pack(self, body: int, items: list[tuple[Intruder, ElementSet]]) -> BodyElements:
         for intr, es in items:
@@ -156,6 +159,21 @@ class GranularField:
         )
 
     # ------------------------------------------------------------------ queries
+    def body_element_set(self, body: int) -> ElementSet:
+        """All tagged elements of a body as one ElementSet in the body frame."""
+        be = next((x for x in self.bodies if x.body == body), None)
+        if be is None:
+            raise ValueError(f"body {body} has no intruding geoms")
+        sets = [self.geom_elements[int(g)] for g in be.geoms]
+        offsets = np.cumsum([0] + [len(es.vertices) for es in sets[:-1]])
+        return ElementSet(
+            centroids=be.centroids,
+            normals=be.normals,
+            areas=be.areas,
+            vertices=np.concatenate([es.vertices for es in sets]),
+            faces=np.concatenate([es.faces + o for es, o in zip(sets, offsets, strict=True)]),
+        )
+
     @property
     def n_elements(self) -> int:
         """Total number of surface triangles over all intruding geoms."""
@@ -204,9 +222,9 @@ class GranularField:
             normal = be.normals[idx] @ rot.T
             # cvel = [w, v] with v at the subtree CoM of the body's root (DESIGN.md section 3).
             w, v0 = data.cvel[b, :3], data.cvel[b, 3:]
-            vel = v0 + np.cross(w, pos - data.subtree_com[self.model.body_rootid[b]])
+            vel = v0 + _cross(w, pos - data.subtree_com[self.model.body_rootid[b]])
             area = be.areas[idx]
-            f = element_forces(pos, normal, area, vel, self.material, self.surface_z)
+            f = unit_normal_forces(pos, normal, area, vel, self.material, self.surface_z)
             out.append(ElementState(b, idx, pos, normal, area, vel, f))
         return out
 
@@ -228,7 +246,7 @@ class GranularField:
         for st in self.element_states(data):
             f = st.force
             out[st.body, :3] = f.sum(axis=0)
-            out[st.body, 3:] = np.cross(st.pos - data.xipos[st.body], f).sum(axis=0)
+            out[st.body, 3:] = _cross(st.pos - data.xipos[st.body], f).sum(axis=0)
         return out
 
     def _check_finite(self, data: mujoco.MjData) -> None:
@@ -247,16 +265,63 @@ class GranularField:
 
     # ------------------------------------------------------------------ application
     def apply_passive(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """Add this step's RFT wrenches to ``data.qfrc_passive`` (the installed path).
+        """Set the intruding rows of ``xfrc_applied`` to user part + RFT (the installed path).
 
-        Calls no mujoco function: inside a callback, any binding call resets the binding's
-        per-thread error escape, after which an exception raised here would abort the process.
+        Runs inside MuJoCo's passive callback of every forward pass. Calls no mujoco function:
+        inside a callback, any binding call resets the binding's per-thread error escape, after
+        which an exception raised here would abort the process.
         """
         w = self.wrench(data)
-        for b in self.body_ids:
-            if np.any(w[b]):
-                add_wrench(model, data, int(b), w[b], self._dof_chains[int(b)], data.qfrc_passive)
+        rows = self.body_ids
+        xfrc = data.xfrc_applied
+        current = xfrc[rows]
+        key = data._address
+        state = self._xfrc_state.get(key)
+        if state is None or state[0]() is not data:
+            user = self._adopt(current)
+        else:
+            _, user_prev, written = state
+            # A row that differs from what the field wrote was assigned by the user.
+            assigned = np.any(current != written, axis=1)
+            user = np.where(assigned[:, None], current, user_prev)
+        total = user + w[rows]
+        xfrc[rows] = total
+        self._xfrc_state[key] = (weakref.ref(data), user, total)
+        history = self._written_history
+        history[total.tobytes()] = user
+        if len(history) > XFRC_HISTORY:
+            history.popitem(last=False)
         self.last_wrench = w
+
+    def _adopt(self, current: np.ndarray) -> np.ndarray:
+        """User part of rows first seen on an MjData.
+
+        A copy of a tracked MjData carries rows the field wrote (user + RFT); the field remembers
+        the user part behind each of its last HISTORY writes, keyed by their exact bytes. Rows
+        that match none are all the user's.
+        """
+        user = self._written_history.get(current.tobytes())
+        return current.copy() if user is None else user.copy()
+
+    def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
+        """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""
+        out = np.array(data.xfrc_applied)
+        state = self._xfrc_state.get(data._address)
+        if state is not None and state[0]() is data:
+            _, user, written = state
+            rows = self.body_ids
+            current = out[rows]
+            assigned = np.any(current != written, axis=1)
+            out[rows] = np.where(assigned[:, None], current, user)
+        return out
+
+    def _restore_user_xfrc(self) -> None:
+        for ref, _, _ in list(self._xfrc_state.values()):
+            data = ref()
+            if data is not None:
+                data.xfrc_applied[:] = self.user_xfrc(data)
+        self._xfrc_state.clear()
+        self._written_history.clear()
 
     @contextlib.contextmanager
     def installed(self) -> Iterator[GranularField]:
@@ -265,8 +330,9 @@ class GranularField:
         Applies to every MjData of the model; other models (and model compilation) are not
         affected. A user's own passive callback keeps running.
         """
-        _callback.install(self.model, self.apply_passive)
+        _callback.install(self.model, lambda m, d: self.apply_passive(m, d))
         try:
             yield self
         finally:
             _callback.uninstall(self.model)
+            self._restore_user_xfrc()

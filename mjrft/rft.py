@@ -114,6 +114,22 @@ def element_forces(
     if np.any(n_len == 0.0):
         i = int(np.flatnonzero(n_len == 0.0)[0])
         raise ValueError(f"element_forces: normal of element {i} has zero length")
+    return unit_normal_forces(pos, n_hat, area, vel, material, surface_z)
+
+
+def unit_normal_forces(
+    pos: np.ndarray,
+    n_hat: np.ndarray,
+    area: np.ndarray,
+    vel: np.ndarray,
+    material: Material,
+    surface_z: float,
+) -> np.ndarray:
+    """``element_forces`` without input checks, for callers that guarantee them (the field).
+
+    Args as ``element_forces``, but float64 arrays of matching shapes, all finite, areas >= 0
+    and `n_hat` unit normals, world frame.
+    """
     out = np.zeros_like(pos)
     depth = surface_z - pos[:, 2]
     v_hat, speed = _unit_rows(vel)

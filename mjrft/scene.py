@@ -22,6 +22,7 @@ Imports mujoco only to read the model; no state.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import mujoco
@@ -158,8 +159,16 @@ def material_from_model(model: mujoco.MjModel, custom: dict | None = None) -> Ma
     return Material._from_fourier(table, float(zeta[0]), "mjcf coefficients", "MJCF <custom>")
 
 
-def scene_from_model(model: mujoco.MjModel, material: Material | None = None) -> Scene:
-    """Read and validate the scene; `material` overrides the one in the MJCF."""
+def scene_from_model(
+    model: mujoco.MjModel, material: Material | None = None, *, n_triangles: int | None = None
+) -> Scene:
+    """Read and validate the scene; `material` and `n_triangles` override the MJCF's."""
+    if n_triangles is not None and (
+        not isinstance(n_triangles, int | np.integer) or n_triangles < geometry.MIN_TRIANGLES
+    ):
+        raise SceneError(
+            f"n_triangles = {n_triangles!r}: expected an integer >= {geometry.MIN_TRIANGLES}"
+        )
     custom = _custom(model)
     mjcf_material = material_from_model(model, custom)
     material = material or mjcf_material
@@ -194,6 +203,11 @@ def scene_from_model(model: mujoco.MjModel, material: Material | None = None) ->
             "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
         )
     intruders = _intruders(model, custom["intruders"][1], int(default_tri))
+    if n_triangles is not None:
+        intruders = tuple(
+            i if i.kind == "mesh" else dataclasses.replace(i, n_triangles=int(n_triangles))
+            for i in intruders
+        )
     return Scene(material, surface_z, region, intruders)
 
 

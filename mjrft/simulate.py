@@ -96,14 +96,17 @@ def record_row(
     data: mujoco.MjData,
     fld: GranularField,
     wrench: np.ndarray | None = None,
+    time: float | None = None,
 ) -> np.ndarray:
     """One row: time, per intruding body CoM position, CoM velocity, RFT wrench; all sensors.
 
-    Evaluated at data's current state (kinematics must be current: after mj_forward).
-    `wrench` (nbody, 6) is the field's wrench at this state if already known.
+    Evaluated from data's derived quantities (xipos, cvel, sensordata), which must all describe
+    one state: after mj_forward, or after an Euler/implicit mj_step, which leaves them at the
+    pre-step state (pass that state's `time` then). `wrench` (nbody, 6) is the field's wrench at
+    that state if already known.
     """
     w = fld.wrench(data) if wrench is None else wrench
-    parts = [np.array([data.time])]
+    parts = [np.array([data.time if time is None else time])]
     vel = np.zeros(6)
     for b in fld.body_ids:
         # Linear velocity of the CoM in the world frame: [rot; lin] at xipos, world orientation.
@@ -145,16 +148,22 @@ def run(
         mujoco.mj_resetDataKeyframe(model, data, 0)
     n_steps = max(1, round(duration / model.opt.timestep))
     tick = max(1, n_steps // 100)
+    # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
+    # wrench at the pre-step state, so that state is recorded after the step at no extra cost.
+    # RK4 leaves its last stage there, so it needs a forward pass at the recorded state.
+    rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     with fld.installed():
-        mujoco.mj_forward(model, data)
-        rec.rows.append(record_row(model, data, fld, fld.last_wrench))
-        for i in range(1, n_steps + 1):
-            mujoco.mj_step(model, data)
-            if i % record_every == 0 or i == n_steps:
-                # Sensors and kinematics of the new state (mj_step leaves them one step behind).
-                # The installed field evaluates this state inside mj_forward: reuse its wrench.
+        for i in range(n_steps):
+            record = i % record_every == 0
+            t_prev = data.time
+            if record and rk4:
                 mujoco.mj_forward(model, data)
                 rec.rows.append(record_row(model, data, fld, fld.last_wrench))
-            if progress is not None and (i % tick == 0 or i == n_steps):
-                progress(i / n_steps)
+            mujoco.mj_step(model, data)
+            if record and not rk4:
+                rec.rows.append(record_row(model, data, fld, fld.last_wrench, time=t_prev))
+            if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
+                progress((i + 1) / n_steps)
+        mujoco.mj_forward(model, data)
+        rec.rows.append(record_row(model, data, fld, fld.last_wrench))
     return data, rec

@@ -89,7 +89,7 @@ def main() -> None:
     print(f"crank radius r = {r:.12g} m, crank centre cx = {cx:.12g} m, phi0 = {phi0:.12g} rad")
     print(f'crank body pos    = "{cx:.12g} 0 0"')
     print(f'crank_pin / coupler body pos = "{pin[0]:.12g} 0 {pin[1]:.12g}"')
-    print(f'coupler_end site pos = "{end[0]:.12g} 0 {end[1]:.12g}"  (|end| = {np.hypot(*end):.12g})')
+    print(f'coupler_end site pos = "{end[0]:.12g} 0 {end[1]:.12g}"', f"(Lc {np.hypot(*end):.12g})")
     print(f'pitch_body pos    = "0 0 {-h:.12g}", rocker_pin pos = "0 0 {h:.12g}"')
     print(f"keyframe qvel (crank, coupler, pitch) = {w:.12g} {dcoup * w:.12g} {dpitch * w:.12g}")
     print(f"keyframe ctrl crank = {w:.12g}, act crank = kv w / kp = {args.kv * w / args.kp:.12g}")

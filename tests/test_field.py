@@ -1,5 +1,7 @@
 """The MuJoCo field: scene parsing, wrenches, the installed path and its composition rules."""
 
+import copy
+
 import mujoco
 import numpy as np
 import pytest
@@ -294,13 +296,81 @@ def test_no_lag_force_is_from_the_state_being_stepped():
         before.qpos[:], before.qvel[:] = d.qpos, d.qvel
         mujoco.mj_forward(m, before)
         expected = fld.wrench(before)
-        plain = np.array(before.qfrc_passive)
         with fld.installed():
             mujoco.mj_step(m, d)
-        np.testing.assert_allclose(fld.last_wrench, expected, rtol=1e-12, atol=1e-15)
-        qf = np.zeros(m.nv)
-        mujoco.mj_applyFT(m, before, expected[1, :3], expected[1, 3:], before.xipos[1], 1, qf)
-        np.testing.assert_allclose(d.qfrc_passive - plain, qf, rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(fld.last_wrench, expected, rtol=1e-12, atol=1e-15)
+        # The step's acceleration is that of the pre-step state under exactly that wrench.
+        before.xfrc_applied[:] = expected
+        mujoco.mj_forward(m, before)
+        np.testing.assert_allclose(d.qacc, before.qacc, rtol=1e-9, atol=1e-9)
+
+
+def test_load_cell_sees_the_field():
+    # MuJoCo's force sensor reads external forces only through xfrc_applied (cfrc_ext).
+    xml = scene_xml(
+        """<body name="holder" pos="0 0 -0.01"><joint type="slide" axis="0 0 1"/>
+             <geom size="0.002" pos="0 0 0.05" contype="0" conaffinity="0"/>
+             <body name="b"><site name="cell"/>
+               <geom name="ball" size="0.01" mass="0.01" contype="0" conaffinity="0"/></body>
+           </body>""",
+        option='gravity="0 0 0"',
+    ).replace("</mujoco>", '<sensor><force name="cell" site="cell"/></sensor></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qvel[0] = -0.01
+    fld = GranularField(m)
+    with fld.installed():
+        mujoco.mj_forward(m, d)
+    w = fld.last_wrench[m.body("b").id]
+    assert w[2] > 0.01
+    # Parent-on-child force = m a - F_ext; this slide keeps x, y from accelerating.
+    acc = np.zeros(6)
+    mujoco.mj_objectAcceleration(m, d, mujoco.mjtObj.mjOBJ_BODY, m.body("b").id, acc, 0)
+    expected = m.body("b").mass[0] * acc[3:] - w[:3]
+    np.testing.assert_allclose(d.sensordata[:3], expected, rtol=1e-6, atol=1e-9)
+
+
+def test_user_rows_survive_assignment_between_steps_and_are_restored():
+    m = ball_model()
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    set_motion(d)
+    push = np.array([0.01, 0.0, 0.02, 0.0, 1e-4, 0.0])
+    with fld.installed():
+        d.xfrc_applied[1] = push
+        mujoco.mj_step(m, d)
+        np.testing.assert_array_equal(d.xfrc_applied[1], push + fld.last_wrench[1])
+        np.testing.assert_array_equal(fld.user_xfrc(d)[1], push)
+        d.xfrc_applied[:] = 0.0  # what the interactive viewer does before applying a perturbation
+        mujoco.mj_step(m, d)
+        np.testing.assert_array_equal(d.xfrc_applied[1], fld.last_wrench[1])
+        np.testing.assert_array_equal(fld.user_xfrc(d)[1], np.zeros(6))
+        d.xfrc_applied[1] = 2 * push
+        mujoco.mj_step(m, d)
+        np.testing.assert_array_equal(fld.user_xfrc(d)[1], 2 * push)
+    np.testing.assert_array_equal(d.xfrc_applied[1], 2 * push)  # the field's part is removed
+
+
+def test_copied_data_keeps_only_the_user_part():
+    m = heavy_model()
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    set_motion(d, **SHOT)
+    d.xfrc_applied[1, :3] = [0.1, 0.0, 0.2]
+    with fld.installed():
+        for _ in range(10):
+            mujoco.mj_step(m, d)
+        twin = copy.copy(d)
+        mujoco.mj_step(m, d)  # the original moves on before the copy's first step
+        twin_late = copy.copy(d)
+        mujoco.mj_step(m, twin)  # now all three are at step 11
+        for _ in range(20):
+            mujoco.mj_step(m, d)
+            mujoco.mj_step(m, twin)
+            mujoco.mj_step(m, twin_late)
+        np.testing.assert_array_equal(twin.qpos, d.qpos)
+        np.testing.assert_array_equal(twin_late.qpos, d.qpos)
+        np.testing.assert_array_equal(fld.user_xfrc(twin)[1, :3], [0.1, 0.0, 0.2])
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])
@@ -350,7 +420,7 @@ def test_compilation_works_while_installed_and_callback_restored():
         spec.compile()
         d = mujoco.MjData(other)
         mujoco.mj_step(other, d)  # another model steps without the field
-        assert np.array_equal(d.qfrc_passive, np.zeros(other.nv))
+        assert np.array_equal(d.xfrc_applied, np.zeros((other.nbody, 6)))
     assert mujoco.get_mjcb_passive() is None
     assert _callback.installed_models() == 0
 
