@@ -7,11 +7,19 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 DEFAULT_DEMO_DIR = "mjrft-demo"
 
 
+# Simulated durations of the dynamic rigs in `mjrft demo` [s]: the ellipsoid's whole descent and
+# one full circumnutation turn of the root.
+DEMO_RIGS = (("ellipsoid_pitch", 12.0), ("root_circumnutation", 24.0))
+
+
 def _demo(args: argparse.Namespace) -> int:
-    from mjrft import demos, report
+    from mjrft import demos, report, simulate
+    from mjrft.field import GranularField
     from mjrft.material import Material
 
     out = Path(args.out)
@@ -28,17 +36,42 @@ def _demo(args: argparse.Namespace) -> int:
         written.append(report.plot_demo(r, out / f"{r.name}.png"))
     written.append(report.plot_time_series(results[0], out / "ellipsoid_pitch_time.png"))
     osc = demos.oscillation_summary(results[0])
-    elapsed = time.perf_counter() - t0
-    print(f"mjrft demo: material {material.name}, {args.triangles} triangles per body")
+    print(f"mjrft demo: material {material.name}, {args.triangles} triangles per primitive")
     print(
-        "  ellipsoid: lateral force oscillates at "
+        "  prescribed ellipsoid: lateral force oscillates at "
         f"{osc['lateral_frequency_hz']:.3f} Hz about a mean of {osc['lateral_mean_n']:+.2e} N "
         f"(RMS {osc['lateral_rms_n']:.3f} N); vertical force at "
         f"{osc['vertical_frequency_hz']:.3f} Hz (pitch at {demos.ELLIPSOID_PITCH_FREQUENCY} Hz)"
     )
     peak = [float(r.force[:, 2].max()) for r in results[:2]]
-    print(f"  ellipsoid peak vertical force: {peak[0]:.3f} N pitching, {peak[1]:.3f} N without")
-    print(f"  root tip final vertical force: {results[2].force[-1, 2]:.3f} N")
+    print(
+        f"  prescribed ellipsoid peak vertical force: {peak[0]:.3f} N pitching, {peak[1]:.3f} N not"
+    )
+    prescribed = {"ellipsoid_pitch": results[0], "root_circumnutation": results[2]}
+    for name, duration in DEMO_RIGS:
+        model = simulate.load_model(simulate.models_dir() / f"{name}.xml")
+        fld = GranularField(model, material=material, n_triangles=args.triangles)
+        _, rec = simulate.run(
+            model, duration, fld=fld, record_every=10, progress=_Progress(f"  rig {name}", 0.0)
+        )
+        cols = dict(zip(rec.columns, rec.array().T, strict=True))
+        written.append(report.write_csv(out / f"rig_{name}.csv", cols))
+        written += report.plot_run(rec, fld.surface_z, out, stem=f"rig_{name}_")
+        body = rec.body_names[0]
+        written.append(
+            report.plot_rig_vs_prescribed(
+                rec,
+                body,
+                prescribed[name],
+                out / f"rig_{name}_vs_prescribed.png",
+                f"{name}.xml simulated in MuJoCo vs the prescribed trajectory",
+            )
+        )
+        print(
+            f"  rig {name}.xml: {duration:g} s simulated, peak vertical RFT force "
+            f"{np.max(cols[f'{body}_rft_force_z_N']):.3f} N"
+        )
+    elapsed = time.perf_counter() - t0
     print(f"wrote {len(written)} files to {out.resolve()} in {elapsed:.1f} s:")
     for p in written:
         print(f"  {p}")
@@ -46,25 +79,27 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 class _Progress:
-    """Progress line on stderr, shown only once a run has taken more than `after` seconds."""
+    """Progress on stderr once a run has taken more than `after` seconds: one line redrawn in
+    place on a terminal, otherwise a line per 10% (so logs stay short)."""
 
     def __init__(self, label: str, after: float = 2.0) -> None:
-        self.label, self.after, self.t0, self.shown = label, after, time.perf_counter(), False
+        self.label, self.after, self.t0 = label, after, time.perf_counter()
+        self.shown, self.next_decile = False, 0.1
+        self.tty = sys.stderr.isatty()
 
     def __call__(self, fraction: float) -> None:
         elapsed = time.perf_counter() - self.t0
-        if elapsed < self.after and fraction < 1.0:
+        if (elapsed < self.after and fraction < 1.0) or (not self.shown and fraction >= 1.0):
             return
-        if not self.shown and fraction >= 1.0:
+        if not self.tty and fraction + 1e-12 < self.next_decile:
             return
+        self.next_decile = (int(fraction * 10 + 1e-9) + 1) / 10
         eta = elapsed * (1.0 - fraction) / max(fraction, 1e-9)
-        end = "\n" if fraction >= 1.0 else ""
-        print(
-            f"\r{self.label}: {100 * fraction:5.1f}%  {elapsed:6.1f} s elapsed, ~{eta:5.1f} s left",
-            end=end,
-            file=sys.stderr,
-            flush=True,
-        )
+        text = f"{self.label}: {100 * fraction:5.1f}%  {elapsed:6.1f} s elapsed, ~{eta:5.1f} s left"
+        if self.tty:
+            print("\r" + text, end="\n" if fraction >= 1.0 else "", file=sys.stderr, flush=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
         self.shown = True
 
 
@@ -138,8 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
         description=(
             "Reproduce the two demos of Treers, Cao & Stuart (RA-L 2021) with prescribed "
             "trajectories: the mole-crab ellipsoid pitching 9 deg at 0.625 Hz while descending "
-            "0.5 cm/s (with and without pitching), and the root-tip paraboloid circumnutating. "
-            "Writes one CSV (SI units, world frame) and PNG plots per demo."
+            "0.5 cm/s (with and without pitching), and the root-tip paraboloid circumnutating; "
+            "then simulate the rigs that produce those motions in MuJoCo with the granular field "
+            "(models/ellipsoid_pitch.xml, 12 s; models/root_circumnutation.xml, one 24 s turn). "
+            "Writes CSV files (SI units, world frame) and PNG plots."
         ),
     )
     d.add_argument(
@@ -151,7 +188,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--triangles",
         type=_positive_int,
         default=4000,
-        help="surface triangles per body: more is more accurate and slower (default: 4000)",
+        help="surface triangles per primitive body (the root rig's mesh keeps its own): more is "
+        "more accurate and slower (default: 4000)",
     )
     d.add_argument(
         "--material",

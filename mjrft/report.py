@@ -151,3 +151,33 @@ def plot_run(rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "") 
         plt.close(figure)
         written.append(path)
     return written
+
+
+def plot_rig_vs_prescribed(
+    rec, body: str, prescribed: DemoResult, path: str | os.PathLike, title: str
+) -> Path:
+    """RFT force vs time of a simulated rig against the prescribed-trajectory demo, as a PNG."""
+    plt = _pyplot()
+    data = rec.array()
+    col = {c: i for i, c in enumerate(rec.columns)}
+    t = data[:, col["time_s"]]
+    fig, ax = plt.subplots(figsize=(10, 4.4), constrained_layout=True)
+    for i, a in enumerate("xyz"):
+        (line,) = ax.plot(
+            t, data[:, col[f"{body}_rft_force_{a}_N"]], label=f"$F_{a}$ simulated rig"
+        )
+        ax.plot(
+            prescribed.time,
+            prescribed.force[:, i],
+            ls="--",
+            color=line.get_color(),
+            label=f"$F_{a}$ prescribed",
+        )
+    ax.set_xlim(0, t[-1])
+    ax.set(xlabel="time [s]", ylabel="RFT force on the intruder [N] (world frame)", title=title)
+    ax.grid(alpha=0.3)
+    ax.legend(ncol=3, fontsize=8)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+    return Path(path)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -20,6 +21,13 @@ INTEGRATORS = {
     "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
+
+
+def models_dir() -> Path:
+    """The rig models shipped with mjrft (the repository's models/ folder)."""
+    import mjrft_models
+
+    return Path(mjrft_models.__file__).parent
 
 
 def load_model(path: str) -> mujoco.MjModel:
