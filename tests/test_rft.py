@@ -271,3 +271,25 @@ def test_bad_input_raises(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         element_forces(**args)
+
+
+def test_authors_stand_in_alpha_functions_plug_in():
+    # The stand-in 2D model shipped with the authors' released MATLAB code (rft_3D_body.m), in
+    # generic form: az = (0.6 sin g + 0.4) cos b, ax = 0.25 cos g (1 - cos 2b), with the first-
+    # order alpha_y = ax(0, 0) = 0. Plugged in as callables, the kernel must equal the plain
+    # transcription of the method, and a hand-computed element.
+    stand_in = mjrft.Material.from_callables(
+        lambda b, g: 0.25 * np.cos(g) * (1 - np.cos(2 * b)),
+        lambda b, g: (0.6 * np.sin(g) + 0.4) * np.cos(b),
+        ZETA,
+    )
+    assert stand_in.alpha_y0 == 0.0
+    rng = np.random.default_rng(9)
+    pos, normal, area, vel = random_elements(rng, 2000)
+    f = element_forces(pos, normal, area, vel, stand_in)
+    ref = reference_forces(pos, normal, area, vel, stand_in)
+    np.testing.assert_allclose(f, ref, rtol=EXACT, atol=EXACT * np.abs(ref).max())
+    # Vertical plate facing +x (beta = pi/2) pushed along +x (gamma = 0): az = 0.4 cos(pi/2) = 0,
+    # ax = 0.25 * 1 * (1 - cos pi) = 0.5, force = -zeta d A ax e2 = -0.5 zeta d A x.
+    one = element_forces([[0, 0, -0.02]], [[1.0, 0, 0]], [1e-4], [[0.01, 0, 0]], stand_in)
+    np.testing.assert_allclose(one[0], [-0.5 * ZETA * 0.02 * 1e-4, 0, 0], atol=1e-15)
