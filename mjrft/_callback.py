@@ -9,9 +9,14 @@ enters Python. The guard must be native rather than a ctypes callback: the bindi
 exceptions with ``longjmp`` out of ``mj_step``, which is harmless across native frames but corrupts
 the interpreter when it crosses a Python frame.
 
-State here is one registry of installed fields, mutated only by ``install``/``uninstall`` under a
-lock, and restored to exactly what it found (including a user's own passive callback, which is
-chained: it still runs for every model).
+For fields that publish native tables (``mjrft._native``), the guard also runs the field's whole
+pass natively for every MjData already registered, and enters Python only for an MjData seen for
+the first time (the field registers it) or when the native pass reports a problem (Python then
+raises). Python-only fields (user callables) take the trampoline on every pass.
+
+State here is the registry of installed fields and registered MjData, mutated only by the
+functions below under a lock, and restored to exactly what it found on the last uninstall
+(including a user's own passive callback, which is chained: it still runs for every model).
 """
 
 from __future__ import annotations
@@ -27,10 +32,15 @@ import mujoco
 import numpy as np
 
 _MAX_MODELS = 256
+_MAX_DATAS = 4096
 _lock = threading.RLock()
-# Slot 0: number of registered models; slots 1..n: their mjModel addresses. Read by the guard.
-_registry = np.zeros(_MAX_MODELS + 1, dtype=np.uint64)
+# Word 0: number of models; then (mjModel address, field native-table address or 0) pairs.
+_registry = np.zeros(1 + 2 * _MAX_MODELS, dtype=np.uint64)
+# Word 0: number of MjData; then (mjData address, mjModel address, entry-table address) triples.
+_datas = np.zeros(1 + 3 * _MAX_DATAS, dtype=np.uint64)
 _handlers: dict[int, Callable[[Any, Any], None]] = {}
+_tables: dict[int, int] = {}  # mjModel address -> native table address (0: Python only)
+_data_entries: dict[int, tuple[int, int]] = {}  # mjData address -> (mjModel address, entry)
 _state: dict[str, Any] = {}  # guard, trampoline address, saved user callback
 
 
@@ -45,18 +55,11 @@ def _libmujoco() -> ctypes.CDLL:
 
 
 def _build_guard(trampoline_address: int):
-    """Compile the native guard that calls the trampoline only for registered models."""
+    """Compile the native guard: native pass for registered MjData, else the trampoline."""
     from numba import cfunc, types
     from numba.extending import intrinsic
 
-    @intrinsic
-    def _u64_ptr(typingctx, addr):
-        sig = types.CPointer(types.uint64)(types.uint64)
-
-        def codegen(context, builder, signature, args):
-            return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
-
-        return sig, codegen
+    from mjrft import _native
 
     @intrinsic
     def _address(typingctx, ptr):
@@ -70,15 +73,31 @@ def _build_guard(trampoline_address: int):
     proto = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
     trampoline = proto(trampoline_address)
     registry_address = np.uint64(_registry.ctypes.data)
+    datas_address = np.uint64(_datas.ctypes.data)
+    step = _native.step
 
     @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
     def guard(m, d):
-        reg = _u64_ptr(registry_address)
+        reg = _native.u64_ptr(registry_address)
         key = _address(m)
-        for i in range(1, reg[0] + 1):
-            if reg[i] == key:
-                trampoline(m, d)
-                return
+        table = np.uint64(0)
+        found = False
+        for i in range(reg[0]):
+            if reg[1 + 2 * i] == key:
+                table = reg[2 + 2 * i]
+                found = True
+                break
+        if not found:
+            return
+        if table != 0:
+            dat = _native.u64_ptr(datas_address)
+            dkey = _address(d)
+            for j in range(dat[0]):
+                if dat[1 + 3 * j] == dkey and dat[2 + 3 * j] == key:
+                    if step(table, dat[3 + 3 * j]) == _native.OK:
+                        return
+                    break
+        trampoline(m, d)
 
     return guard
 
@@ -102,8 +121,14 @@ def _c_global() -> ctypes.c_void_p:
     return _state["c_global"]
 
 
-def install(model: mujoco.MjModel, handler: Callable[[Any, Any], None]) -> None:
-    """Route the passive callback of `model` to handler(m, d) until ``uninstall(model)``."""
+def install(
+    model: mujoco.MjModel, handler: Callable[[Any, Any], None], native_table: int = 0
+) -> None:
+    """Route the passive callback of `model` to handler(m, d) until ``uninstall(model)``.
+
+    native_table: address of the field's ``mjrft._native`` table (0: Python only). With it,
+    registered MjData are handled natively; handler sees the others and any reported problem.
+    """
     with _lock:
         key = model._address
         if key in _handlers:
@@ -134,15 +159,21 @@ def install(model: mujoco.MjModel, handler: Callable[[Any, Any], None]) -> None:
                     _state["trampoline"] = tramp
                 glob_ptr.value = _state["guard"].address
         _handlers[key] = handler
+        _tables[key] = int(native_table)
         _sync_registry()
 
 
 def uninstall(model: mujoco.MjModel) -> None:
     """Stop routing `model`; restore the previous passive callback when no field remains."""
     with _lock:
-        if _handlers.pop(model._address, None) is None:
+        key = model._address
+        if _handlers.pop(key, None) is None:
             return
+        _tables.pop(key, None)
         _sync_registry()
+        for addr in [a for a, (mkey, _) in _data_entries.items() if mkey == key]:
+            _data_entries.pop(addr)
+        _sync_datas()
         if not _handlers:
             # Restores both the binding's callable and the C global (trampoline or null).
             mujoco.set_mjcb_passive(_state.pop("user_callback", None))
@@ -151,8 +182,34 @@ def uninstall(model: mujoco.MjModel) -> None:
 def _sync_registry() -> None:
     keys = list(_handlers)
     # Write entries before the count so a concurrent guard never reads an unset slot.
-    _registry[1 : len(keys) + 1] = keys
+    for i, k in enumerate(keys):
+        _registry[1 + 2 * i] = k
+        _registry[2 + 2 * i] = _tables.get(k, 0)
     _registry[0] = len(keys)
+
+
+def register_data(model: mujoco.MjModel, data_address: int, entry_address: int) -> None:
+    """Let the guard run the model's native pass on this MjData (entry: its address table)."""
+    with _lock:
+        if data_address not in _data_entries and len(_data_entries) >= _MAX_DATAS:
+            raise RuntimeError(f"at most {_MAX_DATAS} MjData can be registered at once")
+        _data_entries[data_address] = (model._address, entry_address)
+        _sync_datas()
+
+
+def unregister_data(data_address: int) -> None:
+    """Forget an MjData (it was freed, or its field was uninstalled)."""
+    with _lock:
+        if _data_entries.pop(data_address, None) is not None:
+            _sync_datas()
+
+
+def _sync_datas() -> None:
+    items = list(_data_entries.items())
+    _datas[0] = min(_datas[0], len(items))  # shrink first: never expose a stale triple
+    for j, (daddr, (mkey, entry)) in enumerate(items):
+        _datas[1 + 3 * j : 4 + 3 * j] = (daddr, mkey, entry)
+    _datas[0] = len(items)
 
 
 def installed_models() -> int:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import weakref
-from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -96,7 +95,28 @@ def _quat_mat(q: np.ndarray) -> np.ndarray:
 
 
 #: How many past writes of xfrc_applied rows the field remembers, to recognise MjData copies.
-XFRC_HISTORY = 100_000
+XFRC_HISTORY = 4096
+
+
+_NO_REGION = np.zeros((2, 3))
+
+
+@dataclass(eq=False)
+class _DataState:
+    """xfrc ownership of one MjData: user part and rows written (intruding bodies' rows), and
+    the address table the native pass reads."""
+
+    ref: weakref.ref
+    user: np.ndarray
+    written: np.ndarray
+    entry: np.ndarray
+    finalizer: weakref.finalize | None = None
+
+
+def _native_words() -> int:
+    from mjrft._native import DATA_WORDS
+
+    return DATA_WORDS
 
 
 class GranularField:
@@ -137,12 +157,80 @@ class GranularField:
         )
         self.body_ids = np.array([be.body for be in self.bodies], dtype=np.int64)
         self._body_names = {be.body: be.name for be in self.bodies}
-        #: (nbody, 6) wrench of the most recent forward pass of the installed field.
+        # The compiled kernel serves Fourier-form media with a constant alpha_y (the presets and
+        # tables); callables take the NumPy path.
+        self._compiled = self.material.fourier is not None and self.material.alpha_y_fn is None
+        self._root = {int(b): int(model.body_rootid[b]) for b in self.body_ids}
+        n_el = self.n_elements
+        # One element index space over all bodies (bodies' blocks in body order).
+        offsets = np.cumsum([0] + [len(be.areas) for be in self.bodies])
+        self._elem_force_all = np.zeros((n_el, 3))
+        #: Per body: (n, 3) world-frame force [N] on each element at the last compiled evaluation.
+        self._elem_force = {
+            be.body: self._elem_force_all[o : o + len(be.areas)]
+            for be, o in zip(self.bodies, offsets, strict=False)
+        }
+        self._stats = np.zeros(3, dtype=np.int64)
+        #: (nbody, 6) wrench of the most recent forward pass of the installed field (updated in
+        #: place: keep a reference if you like).
         self.last_wrench = np.zeros((model.nbody, 6))
-        # Per MjData address: (weakref to it, user part of the intruding rows, rows written).
-        self._xfrc_state: dict[int, tuple[weakref.ref, np.ndarray, np.ndarray]] = {}
-        # Exact bytes of recently written rows -> the user part behind them (for MjData copies).
-        self._written_history: OrderedDict[bytes, np.ndarray] = OrderedDict()
+        # Recent writes to the intruding xfrc rows and the user part behind each: an MjData copy
+        # carries rows the field wrote, and is recognised by them. Slot 0 holds the counter.
+        n_bt = len(self.bodies)
+        self._ring = np.zeros((XFRC_HISTORY + 1, 2, n_bt, 6))
+        # Per MjData address: its state (user part, rows written, native address table).
+        self._data: dict[int, _DataState] = {}
+        self._table = self._native_table(offsets) if self._compiled else None
+
+    def _native_table(self, offsets: np.ndarray) -> np.ndarray:
+        """Publish the static arrays for mjrft._native.step (kept alive by self)."""
+        from mjrft import _native as nt
+
+        self._n_cent = np.ascontiguousarray(np.concatenate([be.centroids for be in self.bodies]))
+        self._n_norm = np.ascontiguousarray(np.concatenate([be.normals for be in self.bodies]))
+        self._n_area = np.ascontiguousarray(np.concatenate([be.areas for be in self.bodies]))
+        rows = []
+        for be, o in zip(self.bodies, offsets, strict=False):
+            for gi, g in enumerate(be.geoms):
+                start, stop = o + be.segments[gi], o + be.segments[gi + 1]
+                rows.append((int(g), be.body, start, stop, self._root[be.body]))
+        self._n_gint = np.array(rows, dtype=np.int64).reshape(-1, 5)
+        self._n_grb = np.array([self.model.geom_rbound[r[0]] for r in rows], dtype=np.float64)
+        self._n_par = np.zeros(nt.N_PARAMS)
+        self._n_par[nt.P_SURFACE] = self.surface_z
+        self._n_par[nt.P_ZETA] = self.material.zeta
+        self._n_par[nt.P_AY] = self.material.alpha_y0
+        if self.region is not None:
+            self._n_par[nt.P_USE_REGION] = 1.0
+            self._n_par[nt.P_REGION :] = self.region.ravel()
+        self._n_coef = np.ascontiguousarray(self.material.kernel_coefficients)
+        t = np.zeros(nt.FIELD_WORDS, dtype=np.uint64)
+        t[nt.F_NELEM] = len(self._n_area)
+        t[nt.F_CENT] = self._n_cent.ctypes.data
+        t[nt.F_NORM] = self._n_norm.ctypes.data
+        t[nt.F_AREA] = self._n_area.ctypes.data
+        t[nt.F_NGEOM] = len(rows)
+        t[nt.F_GINT] = self._n_gint.ctypes.data
+        t[nt.F_GRB] = self._n_grb.ctypes.data
+        t[nt.F_NBODY_TAGGED] = len(self.body_ids)
+        t[nt.F_BODIES] = self.body_ids.ctypes.data
+        t[nt.F_PARAMS] = self._n_par.ctypes.data
+        t[nt.F_COEF] = self._n_coef.ctypes.data
+        t[nt.F_NBODY] = self.model.nbody
+        t[nt.F_LAST_WRENCH] = self.last_wrench.ctypes.data
+        t[nt.F_ELEM_FORCE] = self._elem_force_all.ctypes.data
+        t[nt.F_STATS] = self._stats.ctypes.data
+        t[nt.F_RING] = self._ring.ctypes.data
+        t[nt.F_RING_SIZE] = XFRC_HISTORY
+        return t
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """Work counters since construction: ``calls`` (evaluations of the field), ``evaluated``
+        (triangles handed to the kernel: those of geoms not culled by their bounding sphere) and
+        ``acting`` (triangles that felt a force: submerged and leading)."""
+        c, e, a = (int(x) for x in self._stats)
+        return {"calls": c, "evaluated": e, "acting": a}
 
     def _pack(self, body: int, items: list[tuple[Intruder, ElementSet]]) -> BodyElements:
         for intr, es in items:
@@ -243,11 +331,48 @@ class GranularField:
         else:
             out[:] = 0.0
         self._check_finite(data)
+        if self._compiled:
+            self._wrench_compiled(data, out)
+            return out
         for st in self.element_states(data):
             f = st.force
             out[st.body, :3] = f.sum(axis=0)
             out[st.body, 3:] = _cross(st.pos - data.xipos[st.body], f).sum(axis=0)
+            self._count(len(st.index), int(np.count_nonzero(np.any(f != 0.0, axis=1))))
         return out
+
+    def _wrench_compiled(self, data: mujoco.MjData, out: np.ndarray) -> None:
+        """The hot path: one fused kernel call per evaluated geom block (mjrft._kernel)."""
+        from mjrft import _kernel
+
+        m = self.material
+        co, ay, zeta = m.kernel_coefficients, m.alpha_y0, m.zeta
+        use_region = self.region is not None
+        region = self.region if use_region else _NO_REGION
+        for be in self.bodies:
+            b = be.body
+            rot = pos = omega = v_ref = p_ref = com = None
+            evaluated = acting = 0
+            for gi, g in enumerate(be.geoms):
+                start, stop = be.segments[gi], be.segments[gi + 1]
+                if not self._geom_may_act(data, int(g)):
+                    self._elem_force[b][start:stop] = 0.0
+                    continue
+                if rot is None:
+                    rot = data.xmat[b].reshape(3, 3)
+                    pos, com = data.xpos[b], data.xipos[b]
+                    omega, v_ref = data.cvel[b, :3], data.cvel[b, 3:]
+                    p_ref = data.subtree_com[self._root[b]]
+                acting += _kernel.body_wrench(
+                    be.centroids, be.normals, be.areas, start, stop, rot, pos, omega, v_ref,
+                    p_ref, com, co, ay, zeta, self.surface_z, use_region, region, out[b],
+                    self._elem_force[b],
+                )  # fmt: skip
+                evaluated += stop - start
+            self._count(evaluated, acting)
+
+    def _count(self, evaluated: int, acting: int) -> None:
+        self._stats += (1, evaluated, acting)
 
     def _check_finite(self, data: mujoco.MjData) -> None:
         b = self.body_ids
@@ -267,61 +392,107 @@ class GranularField:
     def apply_passive(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Set the intruding rows of ``xfrc_applied`` to user part + RFT (the installed path).
 
-        Runs inside MuJoCo's passive callback of every forward pass. Calls no mujoco function:
-        inside a callback, any binding call resets the binding's per-thread error escape, after
-        which an exception raised here would abort the process.
+        Runs in MuJoCo's passive callback, for every forward pass the native guard does not
+        handle itself: an MjData seen for the first time (registered here), a problem the
+        native pass reported (raised here), Python-only materials, or a chained user callback.
+        Calls no mujoco function: inside a callback, any binding call resets the binding's
+        per-thread error escape, after which an exception raised here would abort the process.
         """
+        st = self._state(data)
+        if self._table is not None:
+            from mjrft import _native
+
+            status = _native.step(self._table.ctypes.data, st.entry.ctypes.data)
+            if status != _native.OK:
+                self._check_finite(data)  # raises, naming the body
+                raise FloatingPointError(f"granular field failed with status {status}")
+            return
         w = self.wrench(data)
         rows = self.body_ids
-        xfrc = data.xfrc_applied
-        current = xfrc[rows]
+        current = data.xfrc_applied[rows]
+        assigned = np.any(current != st.written, axis=1)
+        st.user[assigned] = current[assigned]
+        total = st.user + w[rows]
+        data.xfrc_applied[rows] = total
+        st.written[:] = total
+        counter = int(self._ring[0, 0, 0, 0])
+        slot = 1 + counter % XFRC_HISTORY
+        self._ring[slot, 0], self._ring[slot, 1] = total, st.user
+        self._ring[0, 0, 0, 0] = counter + 1
+        self.last_wrench[:] = w
+
+    def _state(self, data: mujoco.MjData) -> _DataState:
+        """Ownership state of an MjData, registering it (and its arrays) on first sight."""
         key = data._address
-        state = self._xfrc_state.get(key)
-        if state is None or state[0]() is not data:
-            user = self._adopt(current)
-        else:
-            _, user_prev, written = state
-            # A row that differs from what the field wrote was assigned by the user.
-            assigned = np.any(current != written, axis=1)
-            user = np.where(assigned[:, None], current, user_prev)
-        total = user + w[rows]
-        xfrc[rows] = total
-        self._xfrc_state[key] = (weakref.ref(data), user, total)
-        history = self._written_history
-        history[total.tobytes()] = user
-        if len(history) > XFRC_HISTORY:
-            history.popitem(last=False)
-        self.last_wrench = w
+        st = self._data.get(key)
+        if st is not None and st.ref() is data:
+            return st
+        current = np.array(data.xfrc_applied[self.body_ids])
+        st = _DataState(
+            ref=weakref.ref(data),
+            user=self._adopt(current),
+            written=current.copy(),
+            entry=np.zeros(_native_words(), dtype=np.uint64),
+        )
+        if self._table is not None:
+            from mjrft import _native as nt
+
+            for word, arr in (
+                (nt.D_XPOS, data.xpos),
+                (nt.D_XMAT, data.xmat),
+                (nt.D_XIPOS, data.xipos),
+                (nt.D_CVEL, data.cvel),
+                (nt.D_SUBTREE_COM, data.subtree_com),
+                (nt.D_GEOM_XPOS, data.geom_xpos),
+                (nt.D_XFRC, data.xfrc_applied),
+                (nt.D_USER, st.user),
+                (nt.D_WRITTEN, st.written),
+            ):
+                st.entry[word] = arr.ctypes.data
+            _callback.register_data(self.model, key, st.entry.ctypes.data)
+        st.finalizer = weakref.finalize(data, self._forget, key, st)
+        self._data[key] = st
+        return st
+
+    def _forget(self, key: int, st: _DataState) -> None:
+        if self._data.get(key) is st:
+            self._data.pop(key)
+            _callback.unregister_data(key)
 
     def _adopt(self, current: np.ndarray) -> np.ndarray:
         """User part of rows first seen on an MjData.
 
-        A copy of a tracked MjData carries rows the field wrote (user + RFT); the field remembers
-        the user part behind each of its last HISTORY writes, keyed by their exact bytes. Rows
-        that match none are all the user's.
+        A copy of a tracked MjData carries rows the field wrote (user + RFT); the field keeps
+        the user part behind each of its last XFRC_HISTORY writes. Rows matching none of them
+        are all the user's.
         """
-        user = self._written_history.get(current.tobytes())
-        return current.copy() if user is None else user.copy()
+        n = min(int(self._ring[0, 0, 0, 0]), XFRC_HISTORY)
+        if n:
+            hits = np.flatnonzero(np.all(self._ring[1 : n + 1, 0] == current, axis=(1, 2)))
+            if hits.size:
+                return self._ring[1 + hits[-1], 1].copy()
+        return current.copy()
 
     def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
         """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""
         out = np.array(data.xfrc_applied)
-        state = self._xfrc_state.get(data._address)
-        if state is not None and state[0]() is data:
-            _, user, written = state
+        st = self._data.get(data._address)
+        if st is not None and st.ref() is data:
             rows = self.body_ids
             current = out[rows]
-            assigned = np.any(current != written, axis=1)
-            out[rows] = np.where(assigned[:, None], current, user)
+            assigned = np.any(current != st.written, axis=1)
+            out[rows] = np.where(assigned[:, None], current, st.user)
         return out
 
     def _restore_user_xfrc(self) -> None:
-        for ref, _, _ in list(self._xfrc_state.values()):
-            data = ref()
+        for key, st in list(self._data.items()):
+            data = st.ref()
             if data is not None:
                 data.xfrc_applied[:] = self.user_xfrc(data)
-        self._xfrc_state.clear()
-        self._written_history.clear()
+            st.finalizer.detach()
+            self._data.pop(key)
+            _callback.unregister_data(key)
+        self._ring[0, 0, 0, 0] = 0.0
 
     @contextlib.contextmanager
     def installed(self) -> Iterator[GranularField]:
@@ -330,7 +501,8 @@ class GranularField:
         Applies to every MjData of the model; other models (and model compilation) are not
         affected. A user's own passive callback keeps running.
         """
-        _callback.install(self.model, lambda m, d: self.apply_passive(m, d))
+        table = 0 if self._table is None else self._table.ctypes.data
+        _callback.install(self.model, lambda m, d: self.apply_passive(m, d), table)
         try:
             yield self
         finally:

@@ -16,6 +16,7 @@ order, alpha_y = alpha_x(0, 0); users may supply their own alpha_y(beta).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -293,6 +294,15 @@ class Material:
             alpha_y0=float(coeffs.alpha_x(0.0, 0.0)),
             source=source,
         )
+
+    @functools.cached_property
+    def kernel_coefficients(self) -> np.ndarray:
+        """(18,) generic coefficients in the compiled kernel's combined form (Fourier media)."""
+        if self.fourier is None:
+            raise ValueError(f"material {self.name!r} is given by callables, not coefficients")
+        from mjrft._kernel import combined_coefficients
+
+        return combined_coefficients(self.fourier)
 
     # ----------------------------------------------------------------- evaluation
     def alpha_generic(

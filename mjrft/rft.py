@@ -130,6 +130,29 @@ def unit_normal_forces(
     Args as ``element_forces``, but float64 arrays of matching shapes, all finite, areas >= 0
     and `n_hat` unit normals, world frame.
     """
+    if material.fourier is not None and material.alpha_y_fn is None:
+        from mjrft import _kernel  # compiled path; imported late (it reads constants from here)
+
+        out = np.empty_like(pos)
+        _kernel.forces(
+            pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
+            material.zeta, surface_z, out,
+        )  # fmt: skip
+        return out
+    return numpy_forces(pos, n_hat, area, vel, material, surface_z)
+
+
+def numpy_forces(
+    pos: np.ndarray,
+    n_hat: np.ndarray,
+    area: np.ndarray,
+    vel: np.ndarray,
+    material: Material,
+    surface_z: float,
+) -> np.ndarray:
+    """The vectorised NumPy evaluation (any material, callables included); args as
+    ``unit_normal_forces``. The compiled kernel is tested against it."""
+    pos = np.ascontiguousarray(pos, dtype=np.float64)
     out = np.zeros_like(pos)
     depth = surface_z - pos[:, 2]
     v_hat, speed = _unit_rows(vel)

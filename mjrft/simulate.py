@@ -132,6 +132,8 @@ def run(
     record_every: int = 1,
     progress: Callable[[float], None] | None = None,
     recording: Recording | None = None,
+    observer: Callable[[int, float, mujoco.MjData], None] | None = None,
+    observe_every: int = 1,
 ) -> tuple[mujoco.MjData, Recording]:
     """Simulate `duration` seconds from keyframe 0 (if any) with the field installed.
 
@@ -142,6 +144,12 @@ def run(
       record_every: record one row every this many steps (the initial state is always recorded).
       progress: called with the fraction done, about 100 times over the run.
       recording: an existing Recording to append to (it keeps what was recorded if this raises).
+      observer: called as ``observer(step, time, data)`` every ``observe_every`` steps and at the
+        final state, where data's derived quantities (kinematics, ``cvel``, sensors) describe the
+        state after ``step`` steps, at MuJoCo time ``time`` [s] (for Euler/implicit: right after
+        the step that integrated from it, so ``data.qpos`` is already the next state; for RK4
+        after an ``mj_forward`` at it). The field's wrench of that state acted in the step.
+      observe_every: observer period in steps (>= 1).
     Returns:
       (final MjData, Recording).
     """
@@ -149,6 +157,8 @@ def run(
         raise ValueError(f"duration must be a finite number > 0 s, got {duration}")
     if record_every < 1:
         raise ValueError(f"record_every must be >= 1, got {record_every}")
+    if observe_every < 1:
+        raise ValueError(f"observe_every must be >= 1, got {observe_every}")
     fld = fld or GranularField(model)
     rec = recording or new_recording(model, fld)
     data = mujoco.MjData(model)
@@ -163,15 +173,23 @@ def run(
     with fld.installed():
         for i in range(n_steps):
             record = i % record_every == 0
+            observe = observer is not None and i % observe_every == 0
             t_prev = data.time
-            if record and rk4:
+            if (record or observe) and rk4:
                 mujoco.mj_forward(model, data)
-                rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+                if record:
+                    rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+                if observe:
+                    observer(i, t_prev, data)
             mujoco.mj_step(model, data)
             if record and not rk4:
                 rec.rows.append(record_row(model, data, fld, fld.last_wrench, time=t_prev))
+            if observe and not rk4:
+                observer(i, t_prev, data)
             if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
                 progress((i + 1) / n_steps)
         mujoco.mj_forward(model, data)
         rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+        if observer is not None:
+            observer(n_steps, data.time, data)
     return data, rec
