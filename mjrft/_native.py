@@ -26,8 +26,8 @@ F_NELEM, F_CENT, F_NORM, F_AREA = 0, 1, 2, 3
 F_NGEOM, F_GINT, F_GRB = 4, 5, 6
 F_NBODY_TAGGED, F_BODIES, F_PARAMS, F_COEF = 7, 8, 9, 10
 F_NBODY, F_LAST_WRENCH, F_ELEM_FORCE, F_STATS = 11, 12, 13, 14
-F_RING, F_RING_SIZE = 15, 16
-FIELD_WORDS = 17
+F_RING, F_RING_SIZE, F_DIRTY = 15, 16, 17
+FIELD_WORDS = 18
 # Columns of the (G, 5) int64 geom table.
 G_GEOM, G_BODY, G_START, G_STOP, G_ROOT = 0, 1, 2, 3, 4
 # Float64 parameters: surface_z, zeta, alpha_y, use_region, region (6).
@@ -77,6 +77,7 @@ def step(field_addr, data_addr):
     last = numba.carray(f64_ptr(f[F_LAST_WRENCH]), (nbody, 6))
     elem_force = numba.carray(f64_ptr(f[F_ELEM_FORCE]), (n_el, 3))
     stats = numba.carray(i64_ptr(f[F_STATS]), 3)
+    dirty = numba.carray(i64_ptr(f[F_DIRTY]), n_geom)  # 1: the geom's elem_force may be nonzero
     xpos = numba.carray(f64_ptr(e[D_XPOS]), (nbody, 3))
     xmat = numba.carray(f64_ptr(e[D_XMAT]), (nbody, 3, 3))
     xipos = numba.carray(f64_ptr(e[D_XIPOS]), (nbody, 3))
@@ -100,9 +101,7 @@ def step(field_addr, data_addr):
     geom_xpos = numba.carray(f64_ptr(e[D_GEOM_XPOS]), (ngeom_model, 3))
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
-    region = np.empty((2, 3))
-    for c in range(6):
-        region[c // 3, c % 3] = par[P_REGION + c]
+    region = numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3))  # no allocation
     for b in range(nbody):
         for c in range(6):
             last[b, c] = 0.0
@@ -120,11 +119,14 @@ def step(field_addr, data_addr):
                 if gc + r < region[0, c] or gc - r > region[1, c]:
                     culled = True
         if culled:
-            for i in range(start, stop):
-                elem_force[i, 0] = 0.0
-                elem_force[i, 1] = 0.0
-                elem_force[i, 2] = 0.0
+            if dirty[g]:
+                for i in range(start, stop):
+                    elem_force[i, 0] = 0.0
+                    elem_force[i, 1] = 0.0
+                    elem_force[i, 2] = 0.0
+                dirty[g] = 0
             continue
+        dirty[g] = 1
         acting += _kernel.body_wrench(
             cent, norm, area, start, stop, xmat[b], xpos[b], cvel[b, :3], cvel[b, 3:],
             subtree_com[gint[g, G_ROOT]], xipos[b], co, ay, zeta, surface_z, use_region,

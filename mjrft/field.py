@@ -222,6 +222,8 @@ class GranularField:
         t[nt.F_STATS] = self._stats.ctypes.data
         t[nt.F_RING] = self._ring.ctypes.data
         t[nt.F_RING_SIZE] = XFRC_HISTORY
+        self._n_dirty = np.ones(len(rows), dtype=np.int64)
+        t[nt.F_DIRTY] = self._n_dirty.ctypes.data
         return t
 
     @property
