@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from numpy_baseline import baseline_forces  # noqa: E402
+from numpy_baseline import baseline_forces
 
-import mjrft  # noqa: E402
-from mjrft import _kernel  # noqa: E402
-from mjrft.rft import _unit_rows, numpy_forces  # noqa: E402
+import mjrft
+from mjrft import _kernel
+from mjrft.rft import _unit_rows, numpy_forces
 
 OUT = Path(__file__).resolve().parent / "results"
 
@@ -95,8 +95,12 @@ def main() -> None:
             err = max(np.abs(out - base).max(), np.abs(ident - base).max()) / scale
             assert err < 1e-10, f"kernel and baseline disagree by {err:.2e} relative"
             t_k = median_time(kern, args.repeats)
-            t_b = median_time(lambda: baseline_forces(pos, n_hat, area, vel, m), args.repeats)
-            t_i = median_time(lambda: numpy_forces(pos, n_hat, area, vel, m, 0.0), args.repeats)
+            t_b = median_time(
+                lambda a=(pos, n_hat, area, vel): baseline_forces(*a, m), args.repeats
+            )
+            t_i = median_time(
+                lambda a=(pos, n_hat, area, vel): numpy_forces(*a, m, 0.0), args.repeats
+            )
             rows.append(
                 {
                     "inputs": "all leading" if leading else "random (about half lead)",
@@ -112,8 +116,8 @@ def main() -> None:
             print(
                 f"{r['inputs']:26s} n={n:>7d}: kernel {r['kernel_ns_per_elem']:6.1f} ns/elem, "
                 f"baseline {r['numpy_baseline_ns_per_elem']:7.1f}, NumPy identities "
-                f"{r['numpy_identities_ns_per_elem']:6.1f}; speed-up {r['speedup_vs_baseline']:5.1f}x"
-                f"; max rel diff {err:.1e}"
+                f"{r['numpy_identities_ns_per_elem']:6.1f}; "
+                f"speed-up {r['speedup_vs_baseline']:5.1f}x; max rel diff {err:.1e}"
             )
     lat = first_call_latency()
     print(
