@@ -157,3 +157,67 @@ def step(field_addr, data_addr):
             ring[1 + slot, 1, k, c] = user[k, c]
     ring[0, 0, 0, 0] += 1.0
     return OK
+
+
+@numba.njit(cache=True, error_model="numpy")
+def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, out):
+    """RFT wrenches of many simulations of one model in one call (mjrft.batch).
+
+    xpos (S, nbody, 3), xmat (S, nbody, 9), xipos (S, nbody, 3), cvel (S, nbody, 6),
+    subtree_com (S, nbody, 3), geom_xpos (S, ngeom, 3): bound MjData fields, world frame.
+    out (S, nbody, 6): filled with each body's force and torque at its CoM. Returns OK, or
+    -1 - s for the first simulation s whose state is not finite. Copies run one after the
+    other: numba threads here compete with MuJoCo's batch threads (measured 3-20x slower on 2
+    cores).
+    """
+    f = numba.carray(u64_ptr(field_addr), FIELD_WORDS)
+    n_el, n_geom, n_bt = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED]
+    cent = numba.carray(f64_ptr(f[F_CENT]), (n_el, 3))
+    norm = numba.carray(f64_ptr(f[F_NORM]), (n_el, 3))
+    area = numba.carray(f64_ptr(f[F_AREA]), n_el)
+    gint = numba.carray(i64_ptr(f[F_GINT]), (n_geom, 5))
+    grb = numba.carray(f64_ptr(f[F_GRB]), n_geom)
+    bodies = numba.carray(i64_ptr(f[F_BODIES]), n_bt)
+    par = numba.carray(f64_ptr(f[F_PARAMS]), N_PARAMS)
+    co = numba.carray(f64_ptr(f[F_COEF]), 18)
+    stats = numba.carray(i64_ptr(f[F_STATS]), 3)
+    region = numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3))
+    surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
+    use_region = par[P_USE_REGION] != 0.0
+    n_sim = xpos.shape[0]
+    for s in range(n_sim):
+        for k in range(n_bt):
+            b = bodies[k]
+            for c in range(3):
+                if not np.isfinite(xpos[s, b, c]):
+                    return -1 - s
+            for c in range(6):
+                if not np.isfinite(cvel[s, b, c]):
+                    return -1 - s
+    out[:] = 0.0
+    evaluated = np.zeros(n_sim, np.int64)
+    acting = np.zeros(n_sim, np.int64)
+    for s in range(n_sim):
+        elem_force = np.empty((n_el, 3))  # scratch: per-element forces are not kept for batches
+        for g in range(n_geom):
+            geom, b = gint[g, G_GEOM], gint[g, G_BODY]
+            start, stop = gint[g, G_START], gint[g, G_STOP]
+            r = grb[g]
+            culled = r > 0.0 and geom_xpos[s, geom, 2] - r >= surface_z
+            if not culled and use_region and r > 0.0:
+                for c in range(3):
+                    gc = geom_xpos[s, geom, c]
+                    if gc + r < region[0, c] or gc - r > region[1, c]:
+                        culled = True
+            if culled:
+                continue
+            acting[s] += _kernel.body_wrench(
+                cent, norm, area, start, stop, xmat[s, b].reshape((3, 3)), xpos[s, b],
+                cvel[s, b, :3], cvel[s, b, 3:], subtree_com[s, gint[g, G_ROOT]], xipos[s, b],
+                co, ay, zeta, surface_z, use_region, region, out[s, b], elem_force,
+            )  # fmt: skip
+            evaluated[s] += stop - start
+    stats[0] += n_sim
+    stats[1] += evaluated.sum()
+    stats[2] += acting.sum()
+    return OK
