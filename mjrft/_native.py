@@ -60,23 +60,63 @@ i64_ptr = _ptr_intrinsic(types.int64)
 u64_ptr = _ptr_intrinsic(types.uint64)
 
 
+@numba.njit(inline="always", cache=True)
+def _statics(f):
+    """The field's static arrays from its table f (see the F_* layout)."""
+    n_el, n_geom, n_bt = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED]
+    return (
+        numba.carray(f64_ptr(f[F_CENT]), (n_el, 3)),
+        numba.carray(f64_ptr(f[F_NORM]), (n_el, 3)),
+        numba.carray(f64_ptr(f[F_AREA]), n_el),
+        numba.carray(i64_ptr(f[F_GINT]), (n_geom, 5)),
+        numba.carray(f64_ptr(f[F_GRB]), n_geom),
+        numba.carray(i64_ptr(f[F_BODIES]), n_bt),
+        numba.carray(f64_ptr(f[F_PARAMS]), N_PARAMS),
+        numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3)),  # region, no allocation
+        numba.carray(f64_ptr(f[F_COEF]), 18),
+        numba.carray(i64_ptr(f[F_STATS]), 3),
+    )
+
+
+@numba.njit(inline="always", cache=True)
+def _culled(geom_xpos, geom, r, surface_z, use_region, region):
+    """True if a geom's bounding sphere (centre geom_xpos[geom], radius r) cannot touch the
+    medium: entirely above the surface or outside the region. r = 0 (unknown) never culls."""
+    if r <= 0.0:
+        return False
+    if geom_xpos[geom, 2] - r >= surface_z:
+        return True
+    if use_region:
+        for c in range(3):
+            gc = geom_xpos[geom, c]
+            if gc + r < region[0, c] or gc - r > region[1, c]:
+                return True
+    return False
+
+
+@numba.njit(inline="always", cache=True)
+def _first_bad_body(bodies, xpos, cvel):
+    """Index k of the first tagged body with a non-finite position or velocity, or -1."""
+    for k in range(bodies.shape[0]):
+        b = bodies[k]
+        for c in range(3):
+            if not np.isfinite(xpos[b, c]):
+                return k
+        for c in range(6):
+            if not np.isfinite(cvel[b, c]):
+                return k
+    return -1
+
+
 @numba.njit(cache=True, error_model="numpy")
 def step(field_addr, data_addr):
     """One forward pass of the field on one MjData; returns OK or -1 - (bad tagged body)."""
     f = numba.carray(u64_ptr(field_addr), FIELD_WORDS)
     e = numba.carray(u64_ptr(data_addr), DATA_WORDS)
     n_el, n_geom, n_bt, nbody = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED], f[F_NBODY]
-    cent = numba.carray(f64_ptr(f[F_CENT]), (n_el, 3))
-    norm = numba.carray(f64_ptr(f[F_NORM]), (n_el, 3))
-    area = numba.carray(f64_ptr(f[F_AREA]), n_el)
-    gint = numba.carray(i64_ptr(f[F_GINT]), (n_geom, 5))
-    grb = numba.carray(f64_ptr(f[F_GRB]), n_geom)
-    bodies = numba.carray(i64_ptr(f[F_BODIES]), n_bt)
-    par = numba.carray(f64_ptr(f[F_PARAMS]), N_PARAMS)
-    co = numba.carray(f64_ptr(f[F_COEF]), 18)
+    cent, norm, area, gint, grb, bodies, par, region, co, stats = _statics(f)
     last = numba.carray(f64_ptr(f[F_LAST_WRENCH]), (nbody, 6))
     elem_force = numba.carray(f64_ptr(f[F_ELEM_FORCE]), (n_el, 3))
-    stats = numba.carray(i64_ptr(f[F_STATS]), 3)
     dirty = numba.carray(i64_ptr(f[F_DIRTY]), n_geom)  # 1: the geom's elem_force may be nonzero
     xpos = numba.carray(f64_ptr(e[D_XPOS]), (nbody, 3))
     xmat = numba.carray(f64_ptr(e[D_XMAT]), (nbody, 3, 3))
@@ -87,21 +127,15 @@ def step(field_addr, data_addr):
     user = numba.carray(f64_ptr(e[D_USER]), (n_bt, 6))
     written = numba.carray(f64_ptr(e[D_WRITTEN]), (n_bt, 6))
     # Refuse to feed a non-finite state forward (Python names the body and raises).
-    for k in range(n_bt):
-        b = bodies[k]
-        for c in range(3):
-            if not np.isfinite(xpos[b, c]):
-                return -1 - k
-        for c in range(6):
-            if not np.isfinite(cvel[b, c]):
-                return -1 - k
+    bad = _first_bad_body(bodies, xpos, cvel)
+    if bad >= 0:
+        return -1 - bad
     ngeom_model = 0
     for g in range(n_geom):
         ngeom_model = max(ngeom_model, gint[g, G_GEOM] + 1)
     geom_xpos = numba.carray(f64_ptr(e[D_GEOM_XPOS]), (ngeom_model, 3))
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
-    region = numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3))  # no allocation
     for b in range(nbody):
         for c in range(6):
             last[b, c] = 0.0
@@ -110,15 +144,7 @@ def step(field_addr, data_addr):
     for g in range(n_geom):
         geom, b = gint[g, G_GEOM], gint[g, G_BODY]
         start, stop = gint[g, G_START], gint[g, G_STOP]
-        r = grb[g]
-        cz = geom_xpos[geom, 2]
-        culled = r > 0.0 and cz - r >= surface_z
-        if not culled and use_region and r > 0.0:
-            for c in range(3):
-                gc = geom_xpos[geom, c]
-                if gc + r < region[0, c] or gc - r > region[1, c]:
-                    culled = True
-        if culled:
+        if _culled(geom_xpos, geom, grb[g], surface_z, use_region, region):
             if dirty[g]:
                 for i in range(start, stop):
                     elem_force[i, 0] = 0.0
@@ -171,29 +197,14 @@ def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, ou
     cores).
     """
     f = numba.carray(u64_ptr(field_addr), FIELD_WORDS)
-    n_el, n_geom, n_bt = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED]
-    cent = numba.carray(f64_ptr(f[F_CENT]), (n_el, 3))
-    norm = numba.carray(f64_ptr(f[F_NORM]), (n_el, 3))
-    area = numba.carray(f64_ptr(f[F_AREA]), n_el)
-    gint = numba.carray(i64_ptr(f[F_GINT]), (n_geom, 5))
-    grb = numba.carray(f64_ptr(f[F_GRB]), n_geom)
-    bodies = numba.carray(i64_ptr(f[F_BODIES]), n_bt)
-    par = numba.carray(f64_ptr(f[F_PARAMS]), N_PARAMS)
-    co = numba.carray(f64_ptr(f[F_COEF]), 18)
-    stats = numba.carray(i64_ptr(f[F_STATS]), 3)
-    region = numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3))
+    n_el, n_geom = f[F_NELEM], f[F_NGEOM]
+    cent, norm, area, gint, grb, bodies, par, region, co, stats = _statics(f)
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
     n_sim = xpos.shape[0]
     for s in range(n_sim):
-        for k in range(n_bt):
-            b = bodies[k]
-            for c in range(3):
-                if not np.isfinite(xpos[s, b, c]):
-                    return -1 - s
-            for c in range(6):
-                if not np.isfinite(cvel[s, b, c]):
-                    return -1 - s
+        if _first_bad_body(bodies, xpos[s], cvel[s]) >= 0:
+            return -1 - s
     out[:] = 0.0
     evaluated = np.zeros(n_sim, np.int64)
     acting = np.zeros(n_sim, np.int64)
@@ -202,14 +213,7 @@ def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, ou
         for g in range(n_geom):
             geom, b = gint[g, G_GEOM], gint[g, G_BODY]
             start, stop = gint[g, G_START], gint[g, G_STOP]
-            r = grb[g]
-            culled = r > 0.0 and geom_xpos[s, geom, 2] - r >= surface_z
-            if not culled and use_region and r > 0.0:
-                for c in range(3):
-                    gc = geom_xpos[s, geom, c]
-                    if gc + r < region[0, c] or gc - r > region[1, c]:
-                        culled = True
-            if culled:
+            if _culled(geom_xpos[s], geom, grb[g], surface_z, use_region, region):
                 continue
             acting[s] += _kernel.body_wrench(
                 cent, norm, area, start, stop, xmat[s, b].reshape((3, 3)), xpos[s, b],
