@@ -11,15 +11,23 @@ import numpy as np
 
 DEFAULT_DEMO_DIR = "mjrft-demo"
 
+# Recording defaults, repeated here so that `mjrft --help` does not import rerun (mjrft.viz
+# holds the same values; tests/test_viz.py checks they agree).
+DEFAULT_MAX_ARROWS = 400
+DEFAULT_STRESS_MAX_PA = 1.0e4
+DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
+
 
 # Simulated durations of the dynamic rigs in `mjrft demo` [s]: the ellipsoid's whole descent and
 # one full circumnutation turn of the root.
 DEMO_RIGS = (("ellipsoid_pitch", 12.0), ("root_circumnutation", 24.0))
+# The rig whose run `mjrft demo` records to demo.rrd (one recording per file).
+DEMO_RRD_RIG = "ellipsoid_pitch"
+DEMO_RRD = "demo.rrd"
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from mjrft import demos, report, simulate
-    from mjrft.field import GranularField
+    from mjrft import demos, report
     from mjrft.material import Material
 
     out = Path(args.out)
@@ -49,11 +57,10 @@ def _demo(args: argparse.Namespace) -> int:
     )
     prescribed = {"ellipsoid_pitch": results[0], "root_circumnutation": results[2]}
     for name, duration in DEMO_RIGS:
-        model = simulate.load_model(simulate.models_dir() / f"{name}.xml")
-        fld = GranularField(model, material=material, n_triangles=args.triangles)
-        _, rec = simulate.run(
-            model, duration, fld=fld, record_every=10, progress=_Progress(f"  rig {name}", 0.0)
-        )
+        rrd = out / DEMO_RRD if name == DEMO_RRD_RIG else None
+        fld, rec = _demo_rig(name, duration, material, args.triangles, rrd)
+        if rrd is not None:
+            written.append(rrd)
         cols = dict(zip(rec.columns, rec.array().T, strict=True))
         written.append(report.write_csv(out / f"rig_{name}.csv", cols))
         written += report.plot_run(rec, fld.surface_z, out, stem=f"rig_{name}_")
@@ -76,6 +83,37 @@ def _demo(args: argparse.Namespace) -> int:
     for p in written:
         print(f"  {p}")
     return 0
+
+
+def _demo_rig(name: str, duration: float, material, n_triangles: int, rrd: Path | None):
+    """Simulate models/<name>.xml for `duration` s for `mjrft demo`; record it to `rrd` if given.
+
+    Returns (field, simulate.Recording with a row every 10 steps).
+    """
+    from mjrft import simulate
+    from mjrft.field import GranularField
+
+    model = simulate.load_model(simulate.models_dir() / f"{name}.xml")
+    fld = GranularField(model, material=material, n_triangles=n_triangles)
+    recorder = None
+    if rrd is not None:
+        from mjrft import viz
+
+        recorder = viz.Recorder(model, fld, rrd, recording_id=f"mjrft-demo-{name}")
+    try:
+        _, rec = simulate.run(
+            model,
+            duration,
+            fld=fld,
+            record_every=10,
+            progress=_Progress(f"  rig {name}", 0.0),
+            observer=recorder,
+            observe_every=recorder.every if recorder is not None else 1,
+        )
+    finally:
+        if recorder is not None:
+            recorder.close()
+    return fld, rec
 
 
 class _Progress:
@@ -103,8 +141,28 @@ class _Progress:
         self.shown = True
 
 
+def _recorder(args: argparse.Namespace, model, fld):
+    """The rerun Recorder the options ask for, or None (rerun is imported only then)."""
+    if not (args.rrd or args.spawn or args.connect):
+        return None
+    from mjrft import viz
+
+    return viz.Recorder(
+        model,
+        fld,
+        args.rrd,
+        every=args.rrd_every,
+        max_arrows=args.max_arrows,
+        arrow_scale=args.arrow_scale,
+        stress_max=args.stress_max,
+        spawn=args.spawn,
+        connect=args.connect,
+        recording_id=f"{Path(args.model).stem}-{time.strftime('%Y%m%d-%H%M%S')}",
+    )
+
+
 def _run(args: argparse.Namespace) -> int:
-    from mjrft import report, simulate
+    from mjrft import simulate
     from mjrft.field import GranularField
 
     model = simulate.load_model(args.model)
@@ -112,6 +170,7 @@ def _run(args: argparse.Namespace) -> int:
     fld = GranularField(model)
     rec = simulate.new_recording(model, fld)
     out = Path(args.out)
+    recorder = _recorder(args, model, fld)
     t0 = time.perf_counter()
     status = "completed"
     try:
@@ -122,6 +181,8 @@ def _run(args: argparse.Namespace) -> int:
             record_every=args.record_every,
             progress=_Progress(f"mjrft run {Path(args.model).name}"),
             recording=rec,
+            observer=recorder,
+            observe_every=recorder.every if recorder is not None else 1,
         )
     except KeyboardInterrupt:
         status = "interrupted"
@@ -130,20 +191,39 @@ def _run(args: argparse.Namespace) -> int:
         raise
     finally:
         # Whatever was computed is written, even when the run fails or is interrupted.
-        if rec.rows:
-            csv_path = report.write_csv(
-                out / "timeseries.csv", dict(zip(rec.columns, rec.array().T, strict=True))
-            )
-            pngs = report.plot_run(rec, fld.surface_z, out) if rec.body_names else []
-            wall = time.perf_counter() - t0
-            t_end = rec.rows[-1][0]
-            print(
-                f"mjrft run {Path(args.model).name}: {status} at t = {t_end:.4g} s, "
-                f"{len(rec.rows)} rows, {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
-                f"{_integrator_name(model)}, {wall:.1f} s wall ({t_end / max(wall, 1e-9):.2f}x "
-                f"real time); wrote {csv_path} and {len(pngs)} plots"
-            )
+        try:
+            if recorder is not None:
+                recorder.close()  # completes the .rrd file
+        finally:
+            _write_run_results(args, model, fld, rec, recorder, out, status, t0)
     return 0 if status == "completed" else 130
+
+
+def _write_run_results(args, model, fld, rec, recorder, out: Path, status: str, t0: float) -> None:
+    """CSV, plots and the one-line summary of `mjrft run` (also after a failure or Ctrl-C)."""
+    from mjrft import report
+
+    if not rec.rows:
+        return
+    csv_path = report.write_csv(
+        out / "timeseries.csv", dict(zip(rec.columns, rec.array().T, strict=True))
+    )
+    pngs = report.plot_run(rec, fld.surface_z, out) if rec.body_names else []
+    wall = time.perf_counter() - t0
+    t_end = rec.rows[-1][0]
+    print(
+        f"mjrft run {Path(args.model).name}: {status} at t = {t_end:.4g} s, "
+        f"{len(rec.rows)} rows, {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
+        f"{_integrator_name(model)}, {wall:.1f} s wall ({t_end / max(wall, 1e-9):.2f}x "
+        f"real time); wrote {csv_path} and {len(pngs)} plots"
+    )
+    if recorder is not None and recorder.path is not None and recorder.path.exists():
+        size_mb = recorder.path.stat().st_size / 1e6
+        print(
+            f"  recording: {recorder.path} ({size_mb:.1f} MB, {recorder.frames} frames, one per "
+            f"{recorder.every} steps, arrows {recorder.arrow_scale:.3g} m/N); open it with "
+            f"`rerun {recorder.path}`"
+        )
 
 
 def _integrator_name(model) -> str:
@@ -169,14 +249,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     d = sub.add_parser(
         "demo",
-        help="run the paper's demos and write CSV + PNG plots",
+        help="run the paper's demos and write CSV + PNG plots and a rerun recording",
         description=(
             "Reproduce the two demos of Treers, Cao & Stuart (RA-L 2021) with prescribed "
             "trajectories: the mole-crab ellipsoid pitching 9 deg at 0.625 Hz while descending "
             "0.5 cm/s (with and without pitching), and the root-tip paraboloid circumnutating; "
             "then simulate the rigs that produce those motions in MuJoCo with the granular field "
             "(models/ellipsoid_pitch.xml, 12 s; models/root_circumnutation.xml, one 24 s turn). "
-            "Writes CSV files (SI units, world frame) and PNG plots."
+            "Writes CSV files (SI units, world frame), PNG plots, and demo.rrd: a rerun "
+            "recording of the ellipsoid rig's run (open it with `rerun demo.rrd`)."
         ),
     )
     d.add_argument(
@@ -208,7 +289,8 @@ def build_parser() -> argparse.ArgumentParser:
             "keyframe 0 if the model has one. Writes DIR/timeseries.csv (time; per intruding "
             "body: CoM position and linear velocity, RFT force and torque about the CoM, all in "
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
-            "forces vs time and vs depth. Results are written even if the run fails or is "
+            "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
+            "--rrd a rerun recording. Results are written even if the run fails or is "
             "interrupted with Ctrl-C."
         ),
     )
@@ -237,6 +319,61 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="write one CSV row every K steps (default: 1, every step)",
     )
+    g = r.add_argument_group(
+        "rerun recording",
+        "A recording of the run for the rerun viewer (see README, 'Recordings (rerun)'): body "
+        "meshes and poses, the medium's surface and region, per-triangle RFT force arrows and "
+        "stress colours, per-body RFT force/torque and every sensor as time series. Headless: "
+        "nothing is displayed and no port is opened unless --spawn or --connect is given. The "
+        "file is complete even if the run fails or is interrupted. Open it with `rerun FILE`.",
+    )
+    g.add_argument("--rrd", metavar="FILE", default=None, help="write a rerun recording to FILE")
+    g.add_argument(
+        "--rrd-every",
+        type=_positive_int,
+        default=None,
+        metavar="K",
+        help="log one frame every K steps (default: every 10 ms of simulated time, K = 10 at "
+        "dt = 1 ms; a 10 s run of models/ellipsoid_pitch.xml is then about 15 MB)",
+    )
+    g.add_argument(
+        "--max-arrows",
+        type=_nonnegative_int,
+        default=DEFAULT_MAX_ARROWS,
+        metavar="N",
+        help="at most N per-triangle force arrows per body and frame, an even stride through the "
+        f"triangles that feel a force; 0 for none (default: {DEFAULT_MAX_ARROWS})",
+    )
+    g.add_argument(
+        "--arrow-scale",
+        type=_positive_float,
+        default=None,
+        metavar="M_PER_N",
+        help="arrow length per newton of triangle force, in m/N (default: automatic, a 1 cm "
+        "arrow for a triangle of median area at the top of the stress colour scale)",
+    )
+    g.add_argument(
+        "--stress-max",
+        type=_positive_float,
+        default=DEFAULT_STRESS_MAX_PA,
+        metavar="PA",
+        help="top of the triangle stress colour scale |F|/dA in Pa; viridis from 0, clipped "
+        f"above, grey = no force (default: {DEFAULT_STRESS_MAX_PA:g} Pa)",
+    )
+    g.add_argument(
+        "--spawn",
+        action="store_true",
+        help="also start a rerun viewer and stream the recording to it live (opens a local port)",
+    )
+    g.add_argument(
+        "--connect",
+        nargs="?",
+        const=DEFAULT_CONNECT_URL,
+        default=None,
+        metavar="URL",
+        help="also stream to a running rerun viewer at URL (default when given without a URL: "
+        f"{DEFAULT_CONNECT_URL})",
+    )
     r.set_defaults(func=_run)
     return p
 
@@ -248,6 +385,16 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
     if v <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
+    return v
+
+
+def _nonnegative_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {v}")
     return v
 
 

@@ -25,6 +25,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; results are ordinary files
     try:
         yield Path(tmp)
         os.replace(tmp, path)
@@ -113,11 +116,13 @@ def plot_time_series(result: DemoResult, path: str | os.PathLike) -> Path:
 
 
 def plot_run(rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "") -> list[Path]:
-    """PNG plots of a `mjrft run` recording: RFT force/torque vs time and force vs depth.
+    """PNG plots of a `mjrft run` recording: RFT force/torque vs time, force vs depth and the
+    paper-style summary (``plot_paper``).
 
     Args:
       rec: mjrft.simulate.Recording. surface_z: free-surface height [m].
-      out_dir: directory; files are '<stem>forces_vs_time.png' and '<stem>forces_vs_depth.png'.
+      out_dir: directory; files are '<stem>forces_vs_time.png', '<stem>forces_vs_depth.png' and
+        '<stem>rft_summary.png'.
     """
     plt = _pyplot()
     data = rec.array()
@@ -150,7 +155,80 @@ def plot_run(rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "") 
             figure.savefig(tmp, format="png", dpi=110)
         plt.close(figure)
         written.append(path)
+    written.append(plot_paper(rec, surface_z, Path(out_dir) / f"{stem}{PAPER_PNG}"))
     return written
+
+
+#: File name of the paper-style summary figure that `mjrft run` writes next to the CSV.
+PAPER_PNG = "rft_summary.png"
+#: Resolution of the summary figure [dots per inch].
+PAPER_DPI = 100
+
+
+def plot_paper(rec, surface_z: float, path: str | os.PathLike, title: str | None = None) -> Path:
+    """Paper-style summary of a run, a 2 x 2 block of panels per intruding body, as a PNG.
+
+    Panels (world frame, SI except where the axis says otherwise): (a) RFT force vs CoM depth
+    below the surface [cm]; (b) RFT torque about the CoM vs depth [mN m]; (c) RFT force vs time
+    [s]; (d) lateral (F_x, F_y) vs vertical (F_z) force [N], the trajectory coloured by time.
+
+    Args:
+      rec: mjrft.simulate.Recording. surface_z: free-surface height [m].
+      path: PNG file (written atomically). title: figure title (default: none).
+    """
+    from matplotlib.collections import LineCollection
+
+    plt = _pyplot()
+    data = rec.array()
+    col = {c: i for i, c in enumerate(rec.columns)}
+    t = data[:, col["time_s"]]
+    bodies = rec.body_names or []
+    n = max(1, len(bodies))
+    fig, grid = plt.subplots(
+        2 * n,
+        2,
+        figsize=(12, 7.4 * n + (0.4 if title else 0)),
+        squeeze=False,
+        constrained_layout=True,
+    )
+    axes = grid.reshape(n, 4)
+    colors = {"x": "C0", "y": "C1", "z": "C2"}
+    for j, body in enumerate(bodies):
+        ax_fd, ax_md, ax_ft, ax_lv = axes[j]
+        depth_cm = (surface_z - data[:, col[f"{body}_com_z_m"]]) / CM
+        force = {a: data[:, col[f"{body}_rft_force_{a}_N"]] for a in "xyz"}
+        torque = {a: data[:, col[f"{body}_rft_torque_{a}_Nm"]] * 1e3 for a in "xyz"}
+        for a in "xyz":
+            ax_fd.plot(depth_cm, force[a], color=colors[a], lw=1.0, label=f"$F_{a}$")
+            ax_md.plot(depth_cm, torque[a], color=colors[a], lw=1.0, label=f"$M_{a}$")
+            ax_ft.plot(t, force[a], color=colors[a], lw=1.0, label=f"$F_{a}$")
+        ax_fd.set(xlabel="CoM depth below surface [cm]", ylabel="RFT force [N]")
+        ax_fd.set_title(f"{body}: force vs depth")
+        ax_md.set(xlabel="CoM depth below surface [cm]", ylabel="RFT torque about CoM [mN m]")
+        ax_md.set_title(f"{body}: moment vs depth")
+        ax_ft.set(xlabel="time [s]", ylabel="RFT force [N]")
+        ax_ft.set_title(f"{body}: force vs time")
+        norm = plt.Normalize(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
+        for a, style in (("x", "solid"), ("y", "dashed")):
+            pts = np.column_stack([force["z"], force[a]]).reshape(-1, 1, 2)
+            segs = np.concatenate([pts[:-1], pts[1:]], axis=1)
+            lc = LineCollection(segs, cmap="viridis", norm=norm, linestyles=style, linewidths=1.2)
+            lc.set_array(0.5 * (t[:-1] + t[1:]))
+            ax_lv.add_collection(lc)
+            ax_lv.plot([], [], color="0.3", ls=style, label=f"$F_{a}$")
+        ax_lv.autoscale()
+        ax_lv.set(xlabel="vertical force $F_z$ [N]", ylabel="lateral force [N]")
+        ax_lv.set_title(f"{body}: lateral vs vertical force")
+        fig.colorbar(lc, ax=ax_lv, label="time [s]", pad=0.01)
+        for a in axes[j]:
+            a.grid(alpha=0.3)
+            a.legend(fontsize=8, loc="best")
+    if title:
+        fig.suptitle(title)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=PAPER_DPI)
+    plt.close(fig)
+    return Path(path)
 
 
 def plot_rig_vs_prescribed(

@@ -39,24 +39,32 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterator
+import shutil
+import sys
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
 import numpy as np
+import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 
 from mjrft import geometry, simulate
 from mjrft.field import GranularField
 
-#: Default: log one frame every this many steps (100 frames per simulated second at dt = 1 ms).
-DEFAULT_EVERY = 10
+#: Default frame period [s] of simulated time: 100 frames per simulated second (``every`` = 10
+#: steps at dt = 1 ms). A 10 s run of models/ellipsoid_pitch.xml then takes about 15 MB.
+DEFAULT_FRAME_PERIOD_S = 0.01
+#: Poses and scalars are sent as columns every this many frames (and when the recorder closes).
+FLUSH_FRAMES = 100
 #: Default maximum number of force arrows per body and frame.
 DEFAULT_MAX_ARROWS = 400
-#: Default top of the stress colour scale [Pa] (20 kPa = 2 N/cm^2; 0.33 N/cm^3 glass beads reach
-#: it about 6 cm deep for a triangle facing straight down).
-DEFAULT_STRESS_MAX_PA = 2.0e4
+#: Default top of the stress colour scale [Pa] (10 kPa = 1 N/cm^2). In 0.33 N/cm^3 glass beads
+#: the ellipsoid and root rigs stay mostly below it (median 2-3 kPa, 99th percentile 8-15 kPa in
+#: their runs); the plate rig reaches it about 3 cm deep (use a larger stress_max there).
+DEFAULT_STRESS_MAX_PA = 1.0e4
 #: With the automatic arrow scale, a triangle of median area at ``stress_max`` gets this length [m].
 AUTO_ARROW_LENGTH_M = 0.01
 #: Arrow shaft radius as a fraction of the median triangle's edge length sqrt(dA).
@@ -90,21 +98,34 @@ _VIRIDIS = np.array(
 )
 
 
-def stress_colors(stress: np.ndarray, stress_max: float) -> np.ndarray:
-    """(n, 4) uint8 RGBA colour of each triangle from its stress |F|/dA [Pa].
+def _rgba32(rgb: np.ndarray) -> np.ndarray:
+    """Pack (n, 3) RGB in 0..255 into rerun's Rgba32 (0xRRGGBBAA, opaque) as uint32."""
+    c = np.rint(rgb).astype(np.uint32)
+    return (c[:, 0] << 24) | (c[:, 1] << 16) | (c[:, 2] << 8) | np.uint32(255)
 
-    Viridis over 0 ... ``stress_max`` [Pa], clipped above; exactly zero stress (no force acts)
-    is grey ``NO_FORCE_RGB``. Fully opaque.
+
+#: Number of colour levels of the stress scale.
+STRESS_LEVELS = 256
+_STRESS_LUT = _rgba32(
+    np.column_stack(
+        [
+            np.interp(np.linspace(0.0, 1.0, STRESS_LEVELS), np.linspace(0, 1, len(_VIRIDIS)), c)
+            for c in _VIRIDIS.T
+        ]
+    )
+)
+_NO_FORCE = _rgba32(np.array([NO_FORCE_RGB]))[0]
+
+
+def stress_colors(stress: np.ndarray, stress_max: float) -> np.ndarray:
+    """Colour of each triangle from its stress |F|/dA [Pa], as (n,) uint32 Rgba32 (0xRRGGBBAA).
+
+    Viridis in ``STRESS_LEVELS`` steps over 0 ... ``stress_max`` [Pa], clipped above; exactly
+    zero stress (no force acts) is grey ``NO_FORCE_RGB``. Opaque.
     """
     s = np.asarray(stress, dtype=np.float64)
-    u = np.clip(s / stress_max, 0.0, 1.0) * (len(_VIRIDIS) - 1)
-    lo = np.minimum(np.floor(u).astype(np.int64), len(_VIRIDIS) - 2)
-    frac = (u - lo)[:, None]
-    rgb = _VIRIDIS[lo] * (1.0 - frac) + _VIRIDIS[lo + 1] * frac
-    rgb[s == 0.0] = NO_FORCE_RGB
-    out = np.full((len(s), 4), 255, dtype=np.uint8)
-    out[:, :3] = np.rint(rgb).astype(np.uint8)
-    return out
+    level = np.rint(np.clip(s / stress_max, 0.0, 1.0) * (STRESS_LEVELS - 1)).astype(np.int64)
+    return np.where(s == 0.0, _NO_FORCE, _STRESS_LUT[level]).astype(np.uint32)
 
 
 def _body_name(model: mujoco.MjModel, b: int) -> str:
@@ -134,15 +155,15 @@ def _quat_mat(q: np.ndarray) -> np.ndarray:
 
 def _geom_mesh(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices, faces) of a geom in its geom frame for drawing, or None if not drawable."""
-    t = model.geom_type[g]
+    t = int(model.geom_type[g])
     kinds = {
-        mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
-        mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid",
-        mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
-        mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
-        mujoco.mjtGeom.mjGEOM_BOX: "box",
+        int(mujoco.mjtGeom.mjGEOM_SPHERE): "sphere",
+        int(mujoco.mjtGeom.mjGEOM_ELLIPSOID): "ellipsoid",
+        int(mujoco.mjtGeom.mjGEOM_CAPSULE): "capsule",
+        int(mujoco.mjtGeom.mjGEOM_CYLINDER): "cylinder",
+        int(mujoco.mjtGeom.mjGEOM_BOX): "box",
     }
-    if t == mujoco.mjtGeom.mjGEOM_MESH:
+    if t == int(mujoco.mjtGeom.mjGEOM_MESH):
         mid = model.geom_dataid[g]
         va, vn = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
         fa, fn = model.mesh_faceadr[mid], model.mesh_facenum[mid]
@@ -159,6 +180,16 @@ def _geom_mesh(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray] |
     return np.asarray(es.vertices), np.asarray(es.faces)
 
 
+def _viewer_executable() -> str | None:
+    """The ``rerun`` viewer on PATH, else the one installed next to this Python (a venv that
+    is not activated), else None (rerun then reports how to install it)."""
+    found = shutil.which("rerun")
+    if found:
+        return found
+    beside = Path(sys.executable).with_name("rerun")
+    return str(beside) if beside.exists() else None
+
+
 class Recorder:
     """Logs frames of a MuJoCo run with a GranularField to a rerun recording (headless).
 
@@ -166,7 +197,8 @@ class Recorder:
       model: the compiled model; fld: its field (the per-element forces come from it).
       path: ``.rrd`` file to write (parent folders created); None to only stream (needs
         ``spawn`` or ``connect``).
-      every: log a frame every this many steps (used by :func:`record` / ``simulate.run``).
+      every: log a frame every this many steps (used by :func:`record` / ``simulate.run``);
+        None: ``DEFAULT_FRAME_PERIOD_S`` of simulated time, round(0.01 s / timestep) steps.
       max_arrows: maximum force arrows per body and frame (0: no arrows).
       arrow_scale: arrow length per newton [m/N]; None: automatic, so that a triangle of the
         body's median area at ``stress_max`` gets ``AUTO_ARROW_LENGTH_M`` (1 cm).
@@ -183,7 +215,7 @@ class Recorder:
         fld: GranularField,
         path: str | os.PathLike | None,
         *,
-        every: int = DEFAULT_EVERY,
+        every: int | None = None,
         max_arrows: int = DEFAULT_MAX_ARROWS,
         arrow_scale: float | None = None,
         stress_max: float = DEFAULT_STRESS_MAX_PA,
@@ -193,6 +225,8 @@ class Recorder:
         application_id: str = "mjrft",
         recording_id: str | None = None,
     ) -> None:
+        if every is None:
+            every = max(1, round(DEFAULT_FRAME_PERIOD_S / model.opt.timestep))
         if every < 1:
             raise ValueError(f"every must be >= 1 step, got {every}")
         if max_arrows < 0:
@@ -216,7 +250,17 @@ class Recorder:
         self._other = self._other_geom_meshes() if other_geoms else {}
         self._intruders = [be.body for be in fld.bodies]
         self._drawn = sorted(set(self._intruders) | set(self._other))
-        self._sensor_paths = sensor_entities(model)
+        self._scalar_paths = [
+            f"rft/{self._names[be.body]}/{q}/{a}"
+            for be in fld.bodies
+            for q in ("force", "torque")
+            for a in "xyz"
+        ] + sensor_entities(model)
+        self._active = {be.body: False for be in fld.bodies}
+        self._steps: list[int] = []
+        self._times: list[float] = []
+        self._poses: list[tuple[np.ndarray, np.ndarray]] = []
+        self._scalars: list[np.ndarray] = []
         self._closed = False
 
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
@@ -226,7 +270,10 @@ class Recorder:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(str(self.path)))
         if spawn:
-            self.rec.spawn(connect=False)
+            try:
+                rr.spawn(connect=False, executable_path=_viewer_executable(), recording=self.rec)
+            except RuntimeError as exc:  # no viewer executable, or it failed to start
+                raise ValueError(f"cannot start the rerun viewer (spawn): {exc}") from exc
             sinks.append(rr.GrpcSink(DEFAULT_CONNECT_URL))
         if connect:
             if not spawn or connect != DEFAULT_CONNECT_URL:
@@ -240,7 +287,7 @@ class Recorder:
 
     # ------------------------------------------------------------------ static content
     def _other_geom_meshes(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Per moving body: (vertices, faces, vertex RGBA) of its non-intruding geoms, body frame."""
+        """Per moving body: (vertices, faces, RGBA) of its non-intruding geoms, body frame."""
         m = self.model
         tagged = set(self.fld.geom_elements)
         parts: dict[int, list] = {}
@@ -317,9 +364,7 @@ class Recorder:
             rec.log(
                 f"world/bodies/{self._names[be.body]}/rft_mesh",
                 rr.Mesh3D(
-                    vertex_positions=tri,
-                    vertex_normals=normals,
-                    vertex_colors=np.repeat(colors, 3, axis=0),
+                    vertex_positions=tri, vertex_normals=normals, vertex_colors=np.repeat(colors, 3)
                 ),
                 static=True,
             )
@@ -367,61 +412,101 @@ class Recorder:
             the state the derived quantities describe; after an Euler step, the pre-step time).
           data: MjData whose derived quantities are consistent (after ``mj_forward``, or after
             an Euler/implicit ``mj_step``).
+
+        Poses and scalars are buffered and sent as columns every ``FLUSH_FRAMES`` frames and on
+        :meth:`close` (one call per entity instead of one per value: logging stays well below
+        the cost of the steps). Mesh colours and arrows of a body are logged while it feels a
+        force, and once more (grey, no arrows) when it stops.
         """
         if self._closed:
             raise RuntimeError("this Recorder is closed")
         rec, fld = self.rec, self.fld
-        rec.set_time("step", sequence=int(step))
-        rec.set_time("sim_time", duration=float(time))
-        for b in self._drawn:
-            rec.log(
-                f"world/bodies/{self._names[b]}",
-                rr.Transform3D(translation=data.xpos[b], mat3x3=data.xmat[b].reshape(3, 3)),
-            )
+        self._steps.append(int(step))
+        self._times.append(float(time))
+        self._poses.append((data.xpos[self._drawn].copy(), data.xmat[self._drawn].copy()))
         states = {st.body: st for st in fld.element_states(data)}
+        scalars = []
+        timed = False
         for be in fld.bodies:
-            b, name = be.body, self._names[be.body]
+            b = be.body
             st = states.get(b)
-            n = len(be.areas)
-            stress = np.zeros(n)
             force, torque = np.zeros(3), np.zeros(3)
-            sel = np.zeros(0, dtype=np.int64)
+            active = False
             if st is not None:
-                mag = np.linalg.norm(st.force, axis=1)
-                stress[st.index] = mag / st.area
-                force = st.force.sum(axis=0)
-                torque = np.cross(st.pos - data.xipos[b], st.force).sum(axis=0)
+                mag = np.sqrt(np.einsum("ij,ij->i", st.force, st.force))
                 acting = np.flatnonzero(mag > 0.0)
-                if len(acting) > self.max_arrows:
+                active = len(acting) > 0
+                force = st.force.sum(axis=0)
+                r, f = st.pos - data.xipos[b], st.force
+                torque = np.array(
+                    [
+                        np.dot(r[:, 1], f[:, 2]) - np.dot(r[:, 2], f[:, 1]),
+                        np.dot(r[:, 2], f[:, 0]) - np.dot(r[:, 0], f[:, 2]),
+                        np.dot(r[:, 0], f[:, 1]) - np.dot(r[:, 1], f[:, 0]),
+                    ]
+                )  # sum of r x f about the CoM
+            scalars += [force, torque]
+            if not (active or self._active[b]):
+                continue  # unchanged since the last logged frame: grey, no arrows
+            self._active[b] = active
+            if not timed:
+                rec.set_time("step", sequence=int(step))
+                rec.set_time("sim_time", duration=float(time))
+                timed = True
+            name = self._names[b]
+            stress = np.zeros(len(be.areas))
+            index = np.zeros(0, dtype=np.int64)
+            origins = vectors = np.zeros((0, 3))
+            if active:
+                stress[st.index] = mag / st.area
+                if len(acting) > self.max_arrows:  # an even stride through the acting triangles
                     pick = np.linspace(0, len(acting) - 1, self.max_arrows)
-                    acting = acting[np.rint(pick).astype(np.int64)] if self.max_arrows else acting[:0]
-                sel = acting
+                    acting = acting[np.rint(pick).astype(np.int64)]
+                index = st.index[acting]
+                origins, vectors = st.pos[acting], st.force[acting] * self.arrow_scale
             colors = stress_colors(stress, self.stress_max)
             rec.log(
                 f"world/bodies/{name}/rft_mesh",
-                rr.Mesh3D.from_fields(vertex_colors=np.repeat(colors, 3, axis=0)),
+                rr.Mesh3D.from_fields(vertex_colors=np.repeat(colors, 3)),
             )
-            if st is None:
-                origins = vectors = np.zeros((0, 3))
-                arrow_colors = np.zeros((0, 4), dtype=np.uint8)
-                index = np.zeros(0, dtype=np.int64)
-            else:
-                origins, vectors = st.pos[sel], st.force[sel] * self.arrow_scale
-                index = st.index[sel]
-                arrow_colors = colors[index]
             rec.log(
                 f"world/forces/{name}",
                 rr.Arrows3D(
-                    origins=origins, vectors=vectors, colors=arrow_colors, radii=self.arrow_radius
+                    origins=origins,
+                    vectors=vectors,
+                    colors=colors[index],
+                    radii=self.arrow_radius,
                 ),
-                rr.AnyValues(element_index=index.astype(np.uint32)),
+                rr.AnyValues(element_index=pa.array(index, type=pa.uint32())),
             )
-            for quantity, vec in (("force", force), ("torque", torque)):
-                for axis, value in zip("xyz", vec, strict=True):
-                    rec.log(f"rft/{name}/{quantity}/{axis}", rr.Scalars(float(value)))
-        for path, value in zip(self._sensor_paths, data.sensordata, strict=True):
-            rec.log(path, rr.Scalars(float(value)))
+        scalars.append(np.asarray(data.sensordata, dtype=np.float64))
+        self._scalars.append(np.concatenate(scalars))
         self.frames += 1
+        if len(self._steps) >= FLUSH_FRAMES:
+            self._send_buffered()
+
+    def _send_buffered(self) -> None:
+        """Send the buffered poses and scalars as one column chunk per entity."""
+        if not self._steps:
+            return
+        steps, times = np.array(self._steps), np.array(self._times)
+        xpos = np.stack([p for p, _ in self._poses])  # (frames, drawn, 3)
+        xmat = np.stack([m for _, m in self._poses])  # (frames, drawn, 9)
+        values = np.stack(self._scalars)  # (frames, scalar paths)
+        self._steps, self._times, self._poses, self._scalars = [], [], [], []
+        indexes = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("sim_time", duration=times)]
+        for j, b in enumerate(self._drawn):
+            self.rec.send_columns(
+                f"world/bodies/{self._names[b]}",
+                indexes=indexes,
+                columns=rr.Transform3D.columns(
+                    translation=xpos[:, j], mat3x3=xmat[:, j].reshape(-1, 3, 3)
+                ),
+            )
+        for k, path in enumerate(self._scalar_paths):
+            self.rec.send_columns(
+                path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, k])
+            )
 
     def __call__(self, step: int, time: float, data: mujoco.MjData) -> None:
         """Observer for ``simulate.run``: same as :meth:`log_state`."""
@@ -429,12 +514,18 @@ class Recorder:
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
-        """Flush everything and finalise the file (idempotent; call in a ``finally``)."""
+        """Send what is buffered, flush, finalise the file (idempotent; call in a ``finally``).
+
+        A viewer that cannot be reached (``connect``) only warns: the file is still completed.
+        """
         if self._closed:
             return
         self._closed = True
         try:
+            self._send_buffered()
             self.rec.flush()
+        except RuntimeError as exc:  # rerun reports unreachable gRPC sinks this way
+            warnings.warn(f"rerun: {exc}", RuntimeWarning, stacklevel=2)
         finally:
             self.rec.disconnect()
 
@@ -476,17 +567,30 @@ def record(
         )
 
 
-def iter_rows(path: str | os.PathLike, entity: str) -> Iterator[dict[str, object]]:
-    """Rows logged to one entity of an ``.rrd`` file, read with rerun's own reader.
+def read_entity(path: str | os.PathLike, entity: str) -> list[dict[str, object]]:
+    """Every row logged to one entity of an ``.rrd`` file, read back with rerun's own reader.
 
-    Yields dicts of column name -> Python value (timelines ``step``, ``sim_time`` and components
-    such as ``Arrows3D:vectors``), in file order. For quick checks and tests; for analysis use
-    ``rerun.dataframe``.
+    Returns dicts of column -> Python value, sorted by ``step`` where the rows have one: the
+    timelines ``step`` (int) and ``sim_time`` (float seconds) and the components under their
+    rerun names (``Arrows3D:vectors``: list of [x, y, z]; ``Scalars:scalars``: [value]; ...).
+    Static rows have no timeline. For checks and tests; for analysis see ``rerun.dataframe``.
     """
     from rerun.chunk import RrdReader
 
     want = entity if entity.startswith("/") else "/" + entity
+    rows: list[dict[str, object]] = []
     for chunk in RrdReader(str(path)).stream():
         if chunk.entity_path != want:
             continue
-        yield from chunk.to_record_batch().to_pylist()
+        batch = chunk.to_record_batch()
+        cols = {}
+        for name in batch.schema.names:
+            if name.startswith("rerun.controls."):
+                continue
+            arr = batch.column(name)
+            if pa.types.is_duration(arr.type):
+                cols[name] = [v * 1e-9 for v in arr.cast(pa.int64()).to_pylist()]  # ns -> s
+            else:
+                cols[name] = arr.to_pylist()
+        rows += [{k: v[i] for k, v in cols.items()} for i in range(batch.num_rows)]
+    return sorted(rows, key=lambda r: r.get("step", -1))
