@@ -38,12 +38,16 @@ def baseline_forces(pos, normal, area, vel, material: Material, surface_z=0.0) -
         ax += co.c[k] * np.cos(phase) + co.d[k] * np.sin(phase)
     vt = np.linalg.norm(v1, axis=1)
     vn = np.linalg.norm(v23, axis=1)
-    f1 = 0.440850096954369 * (
-        np.tanh(3.62263982880971 * vt - 1.60910808139526) + np.tanh(1.60910808139526)
-    ) / 0.832324700111401
-    f23 = 1.99392673405210 * (
-        np.arctanh(1.61146827229181 * vn - 0.973746396532650) + np.arctanh(0.973746396532650)
-    ) / 5.81083560370960
+    f1 = (
+        0.440850096954369
+        * (np.tanh(3.62263982880971 * vt - 1.60910808139526) + np.tanh(1.60910808139526))
+        / 0.832324700111401
+    )
+    f23 = (
+        1.99392673405210
+        * (np.arctanh(1.61146827229181 * vn - 0.973746396532650) + np.arctanh(0.973746396532650))
+        / 5.81083560370960
+    )
     s = (material.zeta * depth * area)[:, None]
     f = s * (
         -(f1 * material.alpha_y0 * np.sign(np.sum(v * e1, axis=1)))[:, None] * e1

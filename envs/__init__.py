@@ -1,0 +1,49 @@
+"""dm_control environments on the mjrft granular force field.
+
+::
+
+    import envs
+    env = envs.load("hexapod_sand", seed=0)          # a dm_control.rl.control.Environment
+    ts = env.reset()
+    ts = env.step([1.0, 3.14159])                     # 1 Hz alternating tripod
+    env.close()                                       # uninstalls the field
+
+``envs.NAMES`` lists the environments; each module's docstring gives its actions, observations
+and reward (SI units). The granular RFT field acts inside every physics substep (the physics is
+an ``envs.physics.GranularPhysics``: the field stays installed for its lifetime).
+``envs.gym.GymnasiumEnv`` wraps any of them as a ``gymnasium.Env`` (optional dependency).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from envs import ellipsoid_burrow, hexapod_sand, root_probe
+from envs.base import GranularEnvironment
+from envs.physics import GranularPhysics
+
+_MAKERS: dict[str, Callable[..., GranularEnvironment]] = {
+    "ellipsoid_burrow": ellipsoid_burrow.make,
+    "root_probe": root_probe.make,
+    "hexapod_sand": hexapod_sand.make,
+}
+
+#: Names accepted by :func:`load`.
+NAMES: tuple[str, ...] = tuple(_MAKERS)
+
+__all__ = ["NAMES", "GranularEnvironment", "GranularPhysics", "load"]
+
+
+def load(name: str, **kwargs: Any) -> GranularEnvironment:
+    """Build the environment ``name`` (one of :data:`NAMES`).
+
+    Keyword arguments go to the environment's ``make`` (all accept ``seed`` or ``random``,
+    ``time_limit`` [s], ``control_timestep`` [s], ``material`` and ``n_triangles``; see each
+    module). Raises ValueError for an unknown name.
+    """
+    try:
+        maker = _MAKERS[name]
+    except KeyError:
+        raise ValueError(f"unknown environment {name!r}; valid: {', '.join(NAMES)}") from None
+    return maker(**kwargs)

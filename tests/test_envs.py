@@ -1,0 +1,400 @@
+"""Contract tests of the dm_control environments in envs/, and the hexapod's speed trend."""
+
+from __future__ import annotations
+
+import copy
+import gc
+import math
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from dm_env import specs
+
+import envs
+from envs import hexapod_sand
+from envs.physics import GranularPhysics, installed_fields
+from mjrft import GranularField
+
+ROOT = Path(__file__).resolve().parents[1]
+# Coarser primitive meshes keep the suite fast (the ellipsoid: 1000 instead of 4000 triangles);
+# these tests are about the environment contract, not RFT resolution.
+FAST = {"ellipsoid_burrow": {"n_triangles": 1000}, "root_probe": {}, "hexapod_sand": {}}
+# An action per environment that drives the intruder into the medium at once.
+PUSH = {
+    "ellipsoid_burrow": np.array([2 * math.pi * 0.625, 5.0]),
+    "root_probe": np.array([0.2, 0.5]),
+    "hexapod_sand": np.array([1.0, math.pi]),
+}
+
+
+def make(name: str, **kwargs) -> envs.GranularEnvironment:
+    return envs.load(name, **{**FAST[name], **kwargs})
+
+
+def random_actions(spec: specs.BoundedArray, n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return rng.uniform(spec.minimum, spec.maximum, size=(n, *spec.shape))
+
+
+@pytest.fixture(params=envs.NAMES)
+def name(request) -> str:
+    return request.param
+
+
+# --- package ------------------------------------------------------------------------------------
+
+
+def test_names_and_unknown_name():
+    assert envs.NAMES == ("ellipsoid_burrow", "root_probe", "hexapod_sand")
+    with pytest.raises(ValueError, match="unknown environment 'nope'.*hexapod_sand"):
+        envs.load("nope")
+
+
+@pytest.mark.parametrize("where", ["repository root", "elsewhere (installed)"])
+def test_import_envs_in_a_fresh_interpreter(where, tmp_path):
+    cwd = ROOT if where == "repository root" else tmp_path
+    out = subprocess.run(
+        [sys.executable, "-c", "import envs; print(','.join(envs.NAMES))"],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.strip() == ",".join(envs.NAMES)
+
+
+# --- the contract, for every environment --------------------------------------------------------
+
+
+def test_specs_are_valid_and_observations_match(name):
+    env = make(name, seed=0)
+    try:
+        aspec = env.action_spec()
+        assert isinstance(aspec, specs.BoundedArray) and aspec.dtype == np.float64
+        assert aspec.shape == (2,)
+        assert np.all(np.isfinite(aspec.minimum)) and np.all(np.isfinite(aspec.maximum))
+        assert np.all(aspec.minimum < aspec.maximum)
+        ospec = env.observation_spec()
+        assert ospec and all(s.dtype == np.float64 for s in ospec.values())
+        ts = env.reset()
+        assert ts.first() and ts.reward is None
+        assert list(ts.observation) == list(ospec)
+        for key, spec in ospec.items():
+            spec.validate(ts.observation[key])
+        for action in (aspec.minimum, aspec.maximum, aspec.generate_value()):
+            aspec.validate(action)
+            ts = env.step(action)
+            assert ts.mid() and np.isfinite(ts.reward) and ts.discount == 1.0
+            for key, spec in ospec.items():
+                spec.validate(ts.observation[key])
+        assert env.physics.data.time == pytest.approx(3 * env.control_timestep())
+    finally:
+        env.close()
+
+
+def rollout(env, actions) -> tuple[list[dict], list[float]]:
+    obs, rewards = [env.reset().observation], []
+    for a in actions:
+        ts = env.step(a)
+        obs.append(ts.observation)
+        rewards.append(ts.reward)
+    return obs, rewards
+
+
+def test_deterministic_under_a_seed(name):
+    a, b, c = make(name, seed=7), make(name, seed=7), make(name, seed=8)
+    try:
+        actions = random_actions(a.action_spec(), 40, seed=1)
+        obs_a, rew_a = rollout(a, actions)
+        obs_b, rew_b = rollout(b, actions)
+        assert rew_a == rew_b
+        for oa, ob in zip(obs_a, obs_b, strict=True):
+            for key in oa:
+                np.testing.assert_array_equal(oa[key], ob[key])
+        # The seed matters: each task randomises its start (raise, yaw or gait phase).
+        first_c = c.reset().observation
+        assert any(not np.array_equal(first_c[k], obs_a[0][k]) for k in first_c)
+    finally:
+        for env in (a, b, c):
+            env.close()
+
+
+def test_reset_starts_a_clean_episode(name):
+    used, fresh = make(name, seed=3), make(name, seed=3)
+    try:
+        used.reset()
+        for a in random_actions(used.action_spec(), 25, seed=2):
+            used.step(a)
+        again = used.reset()
+        fresh.reset()
+        expected = fresh.reset()  # the same draw of the task's random numbers
+        assert again.first() and used.physics.data.time == 0.0
+        for key in expected.observation:
+            np.testing.assert_array_equal(again.observation[key], expected.observation[key])
+        # And the episodes that follow are identical too (no state leaks through the reset).
+        actions = random_actions(used.action_spec(), 10, seed=4)
+        for a in actions:
+            ta, tb = used.step(a), fresh.step(a)
+            assert ta.reward == tb.reward
+            for key in ta.observation:
+                np.testing.assert_array_equal(ta.observation[key], tb.observation[key])
+    finally:
+        used.close()
+        fresh.close()
+
+
+def test_no_nan_over_1000_control_steps_of_random_actions(name):
+    env = make(name, seed=11, time_limit=float("inf"))
+    try:
+        env.reset()
+        acted = 0
+        intruding = [be.body for be in env.physics.field.bodies]
+        for a in random_actions(env.action_spec(), 1000, seed=5):
+            ts = env.step(a)
+            assert np.isfinite(ts.reward)
+            for key, value in ts.observation.items():
+                assert np.all(np.isfinite(value)), f"{key} not finite at t={ts}"
+            acted += bool(np.any(env.physics.field.last_wrench[intruding] != 0.0))
+        d = env.physics.data
+        for arr in (d.qpos, d.qvel, d.act, d.qacc, d.xfrc_applied):
+            assert np.all(np.isfinite(arr))
+        assert acted > 500, "the medium hardly ever acted"
+        assert env.physics.substeps == 1000 * env.n_sub_steps
+    finally:
+        env.close()
+
+
+def test_time_limit_ends_the_episode_and_the_next_step_resets(name):
+    env = make(name, seed=0, time_limit=0.1)
+    try:
+        env.reset()
+        steps = [env.step(PUSH[name]) for _ in range(5)]
+        assert [ts.step_type for ts in steps[:-1]] == [1, 1, 1, 1] and steps[-1].last()
+        assert steps[-1].discount == 1.0  # truncation, not termination
+        assert env.step(PUSH[name]).first()
+    finally:
+        env.close()
+
+
+# --- the field acts in every substep ------------------------------------------------------------
+
+
+def test_after_every_substep_xfrc_holds_the_rft_wrench_of_the_new_state(name):
+    """Split stepping: each substep's mj_step1 writes the RFT wrench of the state it reached into
+    xfrc_applied, which the next substep's mj_step2 applies. Check it after every substep."""
+    env = make(name, seed=0)
+    try:
+        env.reset()
+        for _ in range(10):  # into the medium
+            env.step(PUSH[name])
+        phys = env.physics
+        field, data = phys.field, phys.data.ptr
+        rows = [be.body for be in field.bodies]
+        for _ in range(3 * env.n_sub_steps):
+            phys.step(1)
+            expected = field.wrench(data)[rows]  # explicit evaluation at the current state
+            np.testing.assert_allclose(data.xfrc_applied[rows], expected, rtol=1e-12, atol=1e-15)
+            assert np.any(expected != 0.0), "a substep without RFT force"
+            np.testing.assert_array_equal(field.last_wrench[rows], expected)
+    finally:
+        env.close()
+
+
+def step_reference(model, data, ctrl, n, wrench_first=None):
+    """n mj_steps with `ctrl`; wrench_first (nbody, 6): apply only in the first step."""
+    data.ctrl[:] = ctrl
+    for i in range(n):
+        if wrench_first is not None:
+            data.xfrc_applied[:] = wrench_first if i == 0 else 0.0
+        mujoco.mj_step(model, data)
+
+
+def test_trajectory_equals_rft_in_every_substep_and_not_once_per_control_step(name):
+    env = make(name, seed=0)
+    try:
+        phys = env.physics
+        model, data = phys.model.ptr, phys.data.ptr
+        env.reset()
+        for _ in range(10):  # into the medium
+            env.step(PUSH[name])
+        # Reference 1: plain mj_step on this model (its field is installed: RFT in every step).
+        every = mujoco.MjData(model)
+        # Reference 2: a copy of the model without the field; the wrench at the start of each
+        # control step held for its first substep only (what a Task-level force would do).
+        stale_model = copy.copy(model)
+        once = mujoco.MjData(stale_model)
+        for ref in (every, once):
+            ref.qpos[:], ref.qvel[:], ref.act[:] = data.qpos, data.qvel, data.act
+            ref.time = data.time
+        n = env.n_sub_steps
+        for _ in range(5):
+            env.step(PUSH[name])
+            ctrl = data.ctrl.copy()
+            step_reference(model, every, ctrl, n)
+            mujoco.mj_forward(stale_model, once)
+            step_reference(stale_model, once, ctrl, n, phys.field.wrench(once))
+        scale = np.abs(data.qvel).max()
+        err_every = np.abs(every.qvel - data.qvel).max() / scale
+        err_once = np.abs(once.qvel - data.qvel).max() / scale
+        assert err_every < 1e-9, err_every
+        assert err_once > 1e-3, err_once  # the check above would catch a missing substep
+    finally:
+        env.close()
+
+
+# --- lifetime of the installed field ------------------------------------------------------------
+
+
+def test_two_environments_do_not_interfere_and_close_uninstalls():
+    before = installed_fields()
+    alone = make("hexapod_sand", seed=0)
+    actions = random_actions(alone.action_spec(), 15, seed=9)
+    solo, _ = rollout(alone, actions)
+    alone.close()
+    a, b = make("hexapod_sand", seed=0), make("ellipsoid_burrow", seed=0)
+    assert installed_fields() == before + 2
+    model = a.physics.model.ptr
+    try:
+        a.reset()
+        b.reset()
+        # Compiling another model while both fields are installed works (native guard).
+        mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+        for i, act in enumerate(actions):
+            b.step(PUSH["ellipsoid_burrow"])
+            ts = a.step(act)
+            for key in ts.observation:
+                np.testing.assert_array_equal(ts.observation[key], solo[i + 1][key])
+    finally:
+        a.close()
+        b.close()
+    assert installed_fields() == before
+    # After close the model steps without RFT (nothing written into xfrc_applied)...
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+    assert data.qpos[2] < -0.1 and np.all(data.xfrc_applied == 0.0)  # free fall through
+    # ...and a new field can be installed on it.
+    with GranularField(model).installed():
+        mujoco.mj_step(model, data)
+
+
+def test_physics_copy_shares_or_rebuilds_the_field():
+    env = make("root_probe", seed=0)
+    try:
+        env.reset()
+        for _ in range(5):  # into the medium
+            env.step(PUSH["root_probe"])
+        phys = env.physics
+        shared = phys.copy(share_model=True)
+        own = phys.copy()
+        unpickled = pickle.loads(pickle.dumps(phys))
+        assert shared.field is phys.field
+        assert own.field is not phys.field and unpickled.field is not phys.field
+        for p in (shared, own, unpickled):
+            p.step(20)
+            assert np.any(p.field.last_wrench != 0.0)
+        # Same trajectory whichever field acts (a copied RFT wrench is not taken for a user force).
+        np.testing.assert_allclose(shared.data.qpos, own.data.qpos, atol=1e-12)
+        np.testing.assert_allclose(unpickled.data.qpos, own.data.qpos, atol=1e-12)
+        for p in (shared, own, unpickled):
+            p.free()
+        env.step(PUSH["root_probe"])  # the original's field is still installed
+        assert np.any(phys.field.last_wrench != 0.0)
+    finally:
+        env.close()
+
+
+def test_physics_from_xml_path_and_garbage_collection_release_the_field():
+    before = installed_fields()
+    phys = GranularPhysics.from_xml_path(str(ROOT / "models" / "sphere_drop.xml"))
+    assert installed_fields() == before + 1
+    phys.reset(0)
+    phys.step(100)  # the sphere falls into the medium
+    assert np.any(phys.field.last_wrench != 0.0)
+    del phys
+    gc.collect()
+    assert installed_fields() == before
+
+
+# --- rewards ------------------------------------------------------------------------------------
+
+
+def test_burrow_reward_is_depth_gained_per_actuator_work():
+    env = make("ellipsoid_burrow", seed=0)
+    try:
+        env.reset()
+        task = env.task
+        for _ in range(20):
+            d0 = task.depth(env.physics)
+            ts = env.step(PUSH["ellipsoid_burrow"])
+            d1 = ts.observation["depth"][0]
+            assert task.last_work > 0.0
+            assert ts.reward == pytest.approx((d1 - d0) / (task.last_work + envs.base.WORK_FLOOR))
+        assert ts.observation["depth"][0] > 0.0  # it went in
+    finally:
+        env.close()
+
+
+def test_hexapod_reward_is_forward_speed():
+    env = make("hexapod_sand", seed=0)
+    try:
+        env.reset()
+        x0 = env.physics.data.qpos[0]
+        total = sum(env.step(PUSH["hexapod_sand"]).reward for _ in range(50))
+        dx = env.physics.data.qpos[0] - x0
+        assert total * env.control_timestep() == pytest.approx(dx)
+        assert dx > 0.02  # 1 s at 1 Hz walks several centimetres forwards
+    finally:
+        env.close()
+
+
+# --- the hexapod's speed vs leg frequency -------------------------------------------------------
+
+
+def test_hexapod_speed_rises_with_leg_frequency_at_low_frequency():
+    """Li, Zhang & Goldman 2013 (Fig. 4): at low frequency, speed increases with frequency.
+
+    In the quasi-static regime the distance per gait cycle is nearly constant, so the speed is
+    about proportional to f: require each doubling of f to raise the speed by at least 1.5x.
+    """
+    env = hexapod_sand.make(seed=0, time_limit=float("inf"))
+    try:
+        freqs = (0.25, 0.5, 1.0)
+        speeds = [hexapod_sand.forward_speed(f, env=env, cycles=2.0) for f in freqs]
+    finally:
+        env.close()
+    assert speeds[0] > 0.005, speeds  # it walks forwards (m/s)
+    assert speeds[1] > 1.5 * speeds[0], speeds
+    assert speeds[2] > 1.5 * speeds[1], speeds
+
+
+# --- gymnasium ----------------------------------------------------------------------------------
+
+
+def test_gymnasium_wrapper():
+    gymnasium = pytest.importorskip("gymnasium")
+    from gymnasium.utils.env_checker import check_env
+
+    from envs.gym_wrapper import GymnasiumEnv
+
+    env = GymnasiumEnv("hexapod_sand", time_limit=0.1)
+    try:
+        assert isinstance(env, gymnasium.Env)
+        check_env(env, skip_render_check=True)
+        obs, info = env.reset(seed=4)
+        assert obs.shape == env.observation_space.shape and info == {}
+        again, _ = env.reset(seed=4)
+        np.testing.assert_array_equal(obs, again)
+        assert obs[env.observation_slices["height"]].shape == (1,)
+        for i in range(5):
+            obs, reward, terminated, truncated, _ = env.step(np.array([1.0, math.pi]))
+            assert env.observation_space.contains(obs) and np.isfinite(reward)
+            assert not terminated and truncated == (i == 4)
+    finally:
+        env.close()
