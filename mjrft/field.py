@@ -127,6 +127,8 @@ class GranularField:
       material: overrides the MJCF material if given.
       n_triangles: overrides the triangle count of every primitive geom (MJCF ``prm`` and
         ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
+      tolerance: instead of n_triangles, the relative RMS force error wanted per primitive geom
+        (e.g. 0.01); the count comes from ``mjrft.geometry.triangles_for_tolerance``.
     Raises:
       mjrft.scene.SceneError (a ValueError) naming the geom or field at fault.
     """
@@ -137,9 +139,12 @@ class GranularField:
         material: Material | None = None,
         *,
         n_triangles: int | None = None,
+        tolerance: float | None = None,
     ) -> None:
         self.model = model
-        self.scene: Scene = scene_from_model(model, material, n_triangles=n_triangles)
+        self.scene: Scene = scene_from_model(
+            model, material, n_triangles=n_triangles, tolerance=tolerance
+        )
         self.material = self.scene.material
         self.surface_z = self.scene.surface_z
         self.region = self.scene.region

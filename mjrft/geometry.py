@@ -73,6 +73,38 @@ MAX_TRIANGLES = 2_000_000
 """Refuse resolutions above this (memory: ~0.5 GB of element arrays and temporaries)."""
 
 PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
+
+#: Accuracy knob: triangles = max(TOLERANCE_FLOOR, ceil((TOLERANCE_C / tol) ** 2)) for a relative
+#: RMS force tolerance tol. Fitted in benchmarks/pareto.py (benchmarks/RESULTS.md, "Speed vs
+#: accuracy"): the slowest-converging measured cases (a sphere pushed straight down, error
+#: 0.84 n^-0.61; the pitching ellipsoid and root tip converge faster) bounded by 0.8 n^-1/2, and
+#: checked on shapes not used in the fit (capsule, cylinder, box, a 5 x 10 x 30 mm ellipsoid).
+TOLERANCE_C = 0.8
+TOLERANCE_FLOOR = 200
+
+
+def triangles_for_tolerance(tol: float) -> int:
+    """Triangle count for a primitive whose RFT force should be within relative RMS error tol.
+
+    The error is measured as the RMS over a motion of |F - F_converged| over the peak
+    |F_converged| (benchmarks/pareto.py). Raises ValueError unless 0 < tol < 1 and the count
+    stays within MAX_TRIANGLES.
+    """
+    try:
+        t = float(tol)
+    except (TypeError, ValueError):
+        raise ValueError(f"tolerance must be a number in (0, 1), got {tol!r}") from None
+    if not (0.0 < t < 1.0):
+        raise ValueError(f"tolerance must be in (0, 1) (a relative force error), got {tol!r}")
+    n = max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** 2))
+    if n > MAX_TRIANGLES:
+        raise ValueError(
+            f"tolerance {t:g} needs {n} triangles, more than MAX_TRIANGLES = {MAX_TRIANGLES}; "
+            f"the smallest supported tolerance is {TOLERANCE_C / math.sqrt(MAX_TRIANGLES):.2g}"
+        )
+    return n
+
+
 """Kinds accepted by :func:`primitive` (MuJoCo geom type names)."""
 
 SUPPORTED_MESH_EXTENSIONS = (".stl", ".obj", ".ply")

@@ -10,9 +10,11 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:surface_z" data="0"/>         free-surface height [m] (default 0)
       <numeric name="mjrft:region" data="xmin ymin zmin xmax ymax zmax"/>
                                                          optional box bounding the medium [m]
-      <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom
+      <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
+      <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
-        <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default)
+        <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
+                                                         or a tolerance in (0, 1), e.g. 0.02
         <element objtype="body" objname="robot_foot" prm="0"/>
       </tuple>
     </custom>
@@ -34,7 +36,7 @@ from mjrft.material import PRESETS, FourierCoefficients, Material
 PREFIX = "mjrft:"
 KEYS = {
     "text": ("material",),
-    "numeric": ("zeta", "coefficients", "surface_z", "region", "triangles"),
+    "numeric": ("zeta", "coefficients", "surface_z", "region", "triangles", "tolerance"),
     "tuple": ("intruders",),
 }
 COEFFICIENT_ORDER = ("A00", "A10", "B11", "B01", "B-11", "C11", "C01", "C-11", "D10")
@@ -62,6 +64,7 @@ class Intruder:
     body_name: str
     kind: str
     n_triangles: int | None  # None for meshes (their own triangles)
+    tolerance: float | None = None  # the relative force tolerance n_triangles came from, if any
 
 
 @dataclass(frozen=True)
@@ -160,9 +163,21 @@ def material_from_model(model: mujoco.MjModel, custom: dict | None = None) -> Ma
 
 
 def scene_from_model(
-    model: mujoco.MjModel, material: Material | None = None, *, n_triangles: int | None = None
+    model: mujoco.MjModel,
+    material: Material | None = None,
+    *,
+    n_triangles: int | None = None,
+    tolerance: float | None = None,
 ) -> Scene:
-    """Read and validate the scene; `material` and `n_triangles` override the MJCF's."""
+    """Read and validate the scene; `material`, `n_triangles` or `tolerance` override the MJCF's.
+
+    tolerance: relative RMS force error per primitive geom; its triangle count comes from
+    ``mjrft.geometry.triangles_for_tolerance``.
+    """
+    if n_triangles is not None and tolerance is not None:
+        raise SceneError("give at most one of n_triangles and tolerance")
+    if tolerance is not None:
+        n_triangles = geometry.triangles_for_tolerance(tolerance)
     if n_triangles is not None and (
         not isinstance(n_triangles, int | np.integer) or n_triangles < geometry.MIN_TRIANGLES
     ):
@@ -191,7 +206,20 @@ def scene_from_model(
                 "below its max (xmin ymin zmin xmax ymax zmax)"
             )
     tri = _numeric_field(model, custom, "triangles", (1,), "one integer >= 12")
-    default_tri = geometry.DEFAULT_N_TRIANGLES if tri is None else tri[0]
+    tol = _numeric_field(model, custom, "tolerance", (1,), "one number in (0, 1)")
+    if tri is not None and tol is not None:
+        raise SceneError(
+            f"<custom> gives both {PREFIX}triangles and {PREFIX}tolerance; use one of them"
+        )
+    default_tol = None
+    if tol is not None:
+        try:
+            default_tri = geometry.triangles_for_tolerance(tol[0])
+        except ValueError as exc:
+            raise SceneError(f"<numeric name='{PREFIX}tolerance'>: {exc}") from None
+        default_tol = float(tol[0])
+    else:
+        default_tri = geometry.DEFAULT_N_TRIANGLES if tri is None else tri[0]
     if default_tri != int(default_tri) or default_tri < geometry.MIN_TRIANGLES:
         raise SceneError(
             f"<numeric name='{PREFIX}triangles'> = {default_tri}: expected an integer >= "
@@ -202,16 +230,20 @@ def scene_from_model(
             f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
             "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
         )
-    intruders = _intruders(model, custom["intruders"][1], int(default_tri))
+    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol)
     if n_triangles is not None:
         intruders = tuple(
-            i if i.kind == "mesh" else dataclasses.replace(i, n_triangles=int(n_triangles))
+            i
+            if i.kind == "mesh"
+            else dataclasses.replace(i, n_triangles=int(n_triangles), tolerance=tolerance)
             for i in intruders
         )
     return Scene(material, surface_z, region, intruders)
 
 
-def _intruders(model: mujoco.MjModel, t: int, default_tri: int) -> tuple[Intruder, ...]:
+def _intruders(
+    model: mujoco.MjModel, t: int, default_tri: int, default_tol: float | None
+) -> tuple[Intruder, ...]:
     adr, size = model.tuple_adr[t], model.tuple_size[t]
     tagged: dict[int, float] = {}
     for k in range(adr, adr + size):
@@ -244,9 +276,17 @@ def _intruders(model: mujoco.MjModel, t: int, default_tri: int) -> tuple[Intrude
                 f"geom '{name}' has type '{mujoco.mjtGeom(gtype).name[7:].lower()}', which RFT "
                 f"cannot mesh; supported: {', '.join(SUPPORTED_GEOM_TYPES.values())}"
             )
-        if prm < 0 or prm != int(prm) or (0 < prm < geometry.MIN_TRIANGLES):
+        tol = default_tol if prm == 0 else None
+        if 0 < prm < 1:  # a relative force tolerance for this geom
+            tol = prm
+            try:
+                prm = geometry.triangles_for_tolerance(prm)
+            except ValueError as exc:
+                raise SceneError(f"geom '{name}': prm={tol:g}: {exc}") from None
+        elif prm < 0 or prm != int(prm) or (0 < prm < geometry.MIN_TRIANGLES):
             raise SceneError(
-                f"geom '{name}': prm={prm:g} must be 0 (default) or an integer triangle count >= "
+                f"geom '{name}': prm={prm:g} must be 0 (default), a tolerance in (0, 1) or an "
+                f"integer triangle count >= "
                 f"{geometry.MIN_TRIANGLES}"
             )
         if kind == "mesh" and prm != 0:
@@ -265,6 +305,7 @@ def _intruders(model: mujoco.MjModel, t: int, default_tri: int) -> tuple[Intrude
                 body_name=_name(model, mujoco.mjtObj.mjOBJ_BODY, body),
                 kind=kind,
                 n_triangles=None if kind == "mesh" else int(prm or default_tri),
+                tolerance=None if kind == "mesh" else tol,
             )
         )
     return tuple(out)
