@@ -27,16 +27,26 @@ F_NGEOM, F_GINT, F_GRB = 4, 5, 6
 F_NBODY_TAGGED, F_BODIES, F_PARAMS, F_COEF = 7, 8, 9, 10
 F_NBODY, F_LAST_WRENCH, F_ELEM_FORCE, F_STATS = 11, 12, 13, 14
 F_RING, F_RING_SIZE, F_DIRTY = 15, 16, 17
-FIELD_WORDS = 18
+F_MODEL, F_ELIGIBLE, F_DECISION, F_SCRATCH = 18, 19, 20, 21
+FIELD_WORDS = 22
+# Words of the model-address table (F_MODEL): live MjModel fields the low-speed treatment reads
+# (a user may change them between steps: domain randomisation, a new timestep).
+M_TIMESTEP, M_GRAVITY, M_DISABLEFLAGS, M_BODY_MASS, M_BODY_INERTIA, M_BODY_GRAVCOMP = range(6)
+MODEL_WORDS = 6
 # Columns of the (G, 5) int64 geom table.
 G_GEOM, G_BODY, G_START, G_STOP, G_ROOT = 0, 1, 2, 3, 4
-# Float64 parameters: surface_z, zeta, alpha_y, use_region, region (6).
+# Float64 parameters: surface_z, zeta, alpha_y, use_region, region (6), low-speed treatment on,
+# its reach, MuJoCo's gravity-disable bit.
 P_SURFACE, P_ZETA, P_AY, P_USE_REGION, P_REGION = 0, 1, 2, 3, 4
-N_PARAMS = 10
+P_TREAT, P_REACH, P_DSBL_GRAVITY = 10, 11, 12
+N_PARAMS = 13
 # Words of a per-MjData entry.
 D_XPOS, D_XMAT, D_XIPOS, D_CVEL, D_SUBTREE_COM, D_GEOM_XPOS, D_XFRC = 0, 1, 2, 3, 4, 5, 6
-D_USER, D_WRITTEN = 7, 8
-DATA_WORDS = 9
+D_USER, D_WRITTEN, D_XIMAT = 7, 8, 9
+DATA_WORDS = 10
+# Work counters (F_STATS): passes, triangles evaluated, acting, bodies stuck, bodies slipping
+# on the free direction's force (mjrft.lowspeed).
+N_STATS = 5
 # Return codes of step: 0 ok; -1 - k means tagged body k (in the field's body order) is not
 # finite.
 OK = 0
@@ -58,6 +68,7 @@ def _ptr_intrinsic(dtype):
 f64_ptr = _ptr_intrinsic(types.float64)
 i64_ptr = _ptr_intrinsic(types.int64)
 u64_ptr = _ptr_intrinsic(types.uint64)
+i32_ptr = _ptr_intrinsic(types.int32)
 
 
 @numba.njit(inline="always", cache=True)
@@ -74,7 +85,7 @@ def _statics(f):
         numba.carray(f64_ptr(f[F_PARAMS]), N_PARAMS),
         numba.carray(f64_ptr(f[F_PARAMS] + 8 * P_REGION), (2, 3)),  # region, no allocation
         numba.carray(f64_ptr(f[F_COEF]), 18),
-        numba.carray(i64_ptr(f[F_STATS]), 3),
+        numba.carray(i64_ptr(f[F_STATS]), N_STATS),
     )
 
 
@@ -106,6 +117,140 @@ def _first_bad_body(bodies, xpos, cvel):
             if not np.isfinite(cvel[b, c]):
                 return k
     return -1
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _treat_body(
+    b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos, cvel,
+    subtree_com, user, mass, inertia, gvec, dt, reach, co, ay, zeta, surface_z, use_region,
+    region, scratch, w,
+):  # fmt: skip
+    """The low-speed treatment of one free body (mjrft.lowspeed.treat, compiled).
+
+    w (6,): the body's pure RFT wrench (world force, torque about the CoM), replaced by the
+    treated one. user (6,): the user's xfrc row; gvec (3,) gravity [m/s^2] acting on the body;
+    mass [kg], inertia (3,) principal moments [kg m^2] in the inertial frame ximat[b]; dt [s].
+    cull_row (G,): 1 where the geom row is culled this pass. scratch (n_el, 3): element forces
+    of the second evaluation (the field's per-element record keeps the pure model). Returns the
+    decision (mjrft.lowspeed PURE, STICK or SLIP).
+    """
+    if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
+        return 0
+    x = ximat[b]
+    iw = np.empty((3, 3))  # world-axes inertia and its inverse: X diag(I) X^T
+    ii = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            a = 0.0
+            ai = 0.0
+            for k in range(3):
+                a += x[r, k] * inertia[k] * x[c, k]
+                ai += x[r, k] * x[c, k] / inertia[k]
+            iw[r, c] = a
+            ii[r, c] = ai
+    om = cvel[b, :3]
+    c0 = subtree_com[gint[0, G_ROOT]]
+    for g in range(gint.shape[0]):
+        if gint[g, G_BODY] == b:
+            c0 = subtree_com[gint[g, G_ROOT]]
+            break
+    rx, ry, rz = xipos[b, 0] - c0[0], xipos[b, 1] - c0[1], xipos[b, 2] - c0[2]
+    v = np.empty(3)
+    v[0] = cvel[b, 3] + om[1] * rz - om[2] * ry
+    v[1] = cvel[b, 4] + om[2] * rx - om[0] * rz
+    v[2] = cvel[b, 5] + om[0] * ry - om[1] * rx
+    iom = iw @ om
+    # Other wrenches over the step: gravity, the user's row, the gyroscopic torque -w x Iw.
+    tau = np.empty(3)
+    tau[0] = user[3] - (om[1] * iom[2] - om[2] * iom[1])
+    tau[1] = user[4] - (om[2] * iom[0] - om[0] * iom[2])
+    tau[2] = user[5] - (om[0] * iom[1] - om[1] * iom[0])
+    v_free = np.empty(3)
+    for c in range(3):
+        v_free[c] = v[c] + dt * (gvec[c] + user[c] / mass)
+    om_free = om + dt * (ii @ tau)
+    dom_pure = dt * (ii @ w[3:])
+    dot = 0.0
+    for c in range(3):
+        probe_l = v[c] + reach * (v_free[c] - v[c] + dt * w[c] / mass)
+        dot += mass * probe_l * v[c]
+    probe_a = om + reach * (om_free - om + dom_pure)
+    dot += probe_a @ iom
+    if dot > 0.0:
+        return 0
+    n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
+    if n2 > 0.0:
+        rw = np.zeros(6)
+        for g in range(gint.shape[0]):
+            if gint[g, G_BODY] != b or cull_row[g]:
+                continue
+            _kernel.body_wrench(
+                cent, norm, area, gint[g, G_START], gint[g, G_STOP], xmat[b], xpos[b], om_free,
+                v_free, xipos[b], xipos[b], co, ay, zeta, surface_z, use_region, region, rw,
+                scratch,
+            )  # fmt: skip
+        diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
+        diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
+        if dt * diss < n2:
+            for c in range(6):
+                w[c] = rw[c]
+            return 2
+    iomf = iw @ om_free
+    for c in range(3):
+        w[c] = -mass * v_free[c] / dt
+        w[3 + c] = -iomf[c] / dt
+    return 1
+
+
+@numba.njit(inline="always", cache=True)
+def _gravity(mdl, b, dsbl_bit):
+    """(3,) gravity acceleration [m/s^2] on body b, world frame (gravity compensation, flag)."""
+    g = np.zeros(3)
+    flags = numba.carray(i32_ptr(mdl[M_DISABLEFLAGS]), 1)[0]
+    if flags & dsbl_bit:
+        return g
+    grav = numba.carray(f64_ptr(mdl[M_GRAVITY]), 3)
+    comp = numba.carray(f64_ptr(mdl[M_BODY_GRAVCOMP]), b + 1)[b]
+    for c in range(3):
+        g[c] = grav[c] * (1.0 - comp)
+    return g
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _treat_all(
+    mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos, xmat,
+    xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, wrench, stats,
+):  # fmt: skip
+    """Apply the low-speed treatment to every eligible tagged body with a geom in play.
+
+    wrench (nbody, 6): pure RFT wrenches, replaced where treated; user (n_bt, 6) the user's rows.
+    """
+    nbody = wrench.shape[0]
+    dt = numba.carray(f64_ptr(mdl[M_TIMESTEP]), 1)[0]
+    mass_all = numba.carray(f64_ptr(mdl[M_BODY_MASS]), nbody)
+    inertia_all = numba.carray(f64_ptr(mdl[M_BODY_INERTIA]), (nbody, 3))
+    dsbl = np.int32(par[P_DSBL_GRAVITY])
+    for k in range(bodies.shape[0]):
+        b = bodies[k]
+        if not eligible[k] or not dt > 0.0:
+            continue
+        in_play = False
+        for g in range(gint.shape[0]):
+            if gint[g, G_BODY] == b and not cull_row[g]:
+                in_play = True
+        if not in_play:  # nothing of the body can touch the medium: no force, nothing to treat
+            continue
+        d = _treat_body(
+            b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos,
+            cvel, subtree_com, user[k], mass_all[b], inertia_all[b], _gravity(mdl, b, dsbl), dt,
+            par[P_REACH], co, par[P_AY], par[P_ZETA], par[P_SURFACE], par[P_USE_REGION] != 0.0,
+            region, scratch, wrench[b],
+        )  # fmt: skip
+        decision[k] = d
+        if d == 1:
+            stats[3] += 1
+        elif d == 2:
+            stats[4] += 1
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -141,10 +286,12 @@ def step(field_addr, data_addr):
             last[b, c] = 0.0
     evaluated = 0
     acting = 0
+    cull_row = np.zeros(n_geom, np.int64)
     for g in range(n_geom):
         geom, b = gint[g, G_GEOM], gint[g, G_BODY]
         start, stop = gint[g, G_START], gint[g, G_STOP]
         if _culled(geom_xpos, geom, grb[g], surface_z, use_region, region):
+            cull_row[g] = 1
             if dirty[g]:
                 for i in range(start, stop):
                     elem_force[i, 0] = 0.0
@@ -164,18 +311,34 @@ def step(field_addr, data_addr):
     stats[2] += acting
     # xfrc_applied ownership (mjrft.field): a row that differs from what was written was
     # assigned by the user and becomes the user part; then row = user + RFT.
-    ring_size = f[F_RING_SIZE]
-    ring = numba.carray(f64_ptr(f[F_RING]), (ring_size + 1, 2, n_bt, 6))
-    slot = int(ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
     for k in range(n_bt):
         b = bodies[k]
         assigned = False
         for c in range(6):
             if xfrc[b, c] != written[k, c]:
                 assigned = True
-        for c in range(6):
-            if assigned:
+        if assigned:
+            for c in range(6):
                 user[k, c] = xfrc[b, c]
+    decision = numba.carray(i64_ptr(f[F_DECISION]), n_bt)
+    for k in range(n_bt):
+        decision[k] = 0
+    if par[P_TREAT] != 0.0:
+        mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
+        eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
+        ximat = numba.carray(f64_ptr(e[D_XIMAT]), (nbody, 3, 3))
+        scratch = numba.carray(f64_ptr(f[F_SCRATCH]), (n_el, 3))
+        _treat_all(
+            mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos,
+            xmat, xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, last,
+            stats,
+        )  # fmt: skip
+    ring_size = f[F_RING_SIZE]
+    ring = numba.carray(f64_ptr(f[F_RING]), (ring_size + 1, 2, n_bt, 6))
+    slot = int(ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
+    for k in range(n_bt):
+        b = bodies[k]
+        for c in range(6):
             total = user[k, c] + last[b, c]
             xfrc[b, c] = total
             written[k, c] = total
@@ -186,18 +349,21 @@ def step(field_addr, data_addr):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, out):
+def batch_wrench(
+    field_addr, xpos, xmat, xipos, ximat, cvel, subtree_com, geom_xpos, user_xfrc, out
+):  # fmt: skip
     """RFT wrenches of many simulations of one model in one call (mjrft.batch).
 
-    xpos (S, nbody, 3), xmat (S, nbody, 9), xipos (S, nbody, 3), cvel (S, nbody, 6),
-    subtree_com (S, nbody, 3), geom_xpos (S, ngeom, 3): bound MjData fields, world frame.
-    out (S, nbody, 6): filled with each body's force and torque at its CoM. Returns OK, or
-    -1 - s for the first simulation s whose state is not finite. Copies run one after the
-    other: numba threads here compete with MuJoCo's batch threads (measured 3-20x slower on 2
-    cores).
+    xpos (S, nbody, 3), xmat (S, nbody, 9), xipos (S, nbody, 3), ximat (S, nbody, 9),
+    cvel (S, nbody, 6), subtree_com (S, nbody, 3), geom_xpos (S, ngeom, 3): bound MjData
+    fields, world frame. user_xfrc (S, nbody, 6): the user's applied wrenches (the low-speed
+    treatment counts them). out (S, nbody, 6): filled with each body's force and torque at its
+    CoM. Returns OK, or -1 - s for the first simulation s whose state is not finite. Copies run
+    one after the other: numba threads here compete with MuJoCo's batch threads (measured 3-20x
+    slower on 2 cores).
     """
     f = numba.carray(u64_ptr(field_addr), FIELD_WORDS)
-    n_el, n_geom = f[F_NELEM], f[F_NGEOM]
+    n_el, n_geom, n_bt = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED]
     cent, norm, area, gint, grb, bodies, par, region, co, stats = _statics(f)
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
@@ -208,12 +374,20 @@ def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, ou
     out[:] = 0.0
     evaluated = np.zeros(n_sim, np.int64)
     acting = np.zeros(n_sim, np.int64)
+    elem_force = np.empty((n_el, 3))  # scratch: per-element forces are not kept for batches
+    cull_row = np.zeros(n_geom, np.int64)
+    user = np.empty((n_bt, 6))
+    decision = np.empty(n_bt, np.int64)
+    treat = par[P_TREAT] != 0.0
+    mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
+    eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
     for s in range(n_sim):
-        elem_force = np.empty((n_el, 3))  # scratch: per-element forces are not kept for batches
         for g in range(n_geom):
             geom, b = gint[g, G_GEOM], gint[g, G_BODY]
             start, stop = gint[g, G_START], gint[g, G_STOP]
+            cull_row[g] = 0
             if _culled(geom_xpos[s], geom, grb[g], surface_z, use_region, region):
+                cull_row[g] = 1
                 continue
             acting[s] += _kernel.body_wrench(
                 cent, norm, area, start, stop, xmat[s, b].reshape((3, 3)), xpos[s, b],
@@ -221,6 +395,16 @@ def batch_wrench(field_addr, xpos, xmat, xipos, cvel, subtree_com, geom_xpos, ou
                 co, ay, zeta, surface_z, use_region, region, out[s, b], elem_force,
             )  # fmt: skip
             evaluated[s] += stop - start
+        if treat:
+            for k in range(n_bt):
+                for c in range(6):
+                    user[k, c] = user_xfrc[s, bodies[k], c]
+            _treat_all(
+                mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area,
+                geom_xpos[s], xmat[s].reshape((-1, 3, 3)), xpos[s],
+                ximat[s].reshape((-1, 3, 3)), xipos[s], cvel[s], subtree_com[s], user, co, par,
+                region, elem_force, out[s], stats,
+            )  # fmt: skip
     stats[0] += n_sim
     stats[1] += evaluated.sum()
     stats[2] += acting.sum()

@@ -37,7 +37,7 @@ class BatchedField:
       wrench: (nsim, nbody, 6) RFT wrenches of the last substep.
     """
 
-    _DERIVED = ("xpos", "xmat", "xipos", "cvel", "subtree_com", "geom_xpos")
+    _DERIVED = ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos")
 
     def __init__(self, field: GranularField, nsim: int, nthread: int | None = None) -> None:
         if field._table is None:
@@ -79,8 +79,8 @@ class BatchedField:
         for _ in range(nstep):
             a = self._arrays
             status = _native.batch_wrench(
-                self.field._table.ctypes.data, a["xpos"], a["xmat"], a["xipos"], a["cvel"],
-                a["subtree_com"], a["geom_xpos"], self.wrench,
+                self.field._table.ctypes.data, a["xpos"], a["xmat"], a["xipos"], a["ximat"],
+                a["cvel"], a["subtree_com"], a["geom_xpos"], self.user_xfrc, self.wrench,
             )  # fmt: skip
             if status != _native.OK:
                 sim = -1 - status
@@ -101,6 +101,6 @@ def single_step_reference(
     mj_forward; xfrc_applied = user + field.wrench(data); mj_step.
     """
     mujoco.mj_forward(field.model, data)
-    u = 0.0 if user is None else user
-    data.xfrc_applied[:] = u + field.wrench(data)
+    u = np.zeros((field.model.nbody, 6)) if user is None else user
+    data.xfrc_applied[:] = u + field.wrench(data, user_xfrc=u)
     mujoco.mj_step(field.model, data)

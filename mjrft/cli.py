@@ -167,7 +167,7 @@ def _run(args: argparse.Namespace) -> int:
 
     model = simulate.load_model(args.model)
     simulate.configure(model, args.timestep, args.integrator)
-    fld = GranularField(model)
+    fld = GranularField(model, low_speed=args.low_speed, stick_reach=args.stick_reach)
     rec = simulate.new_recording(model, fld)
     out = Path(args.out)
     recorder = _recorder(args, model, fld)
@@ -311,6 +311,21 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["euler", "rk4", "implicit", "implicitfast"],
         default=None,
         help="override the model's integrator (default: the model's <option integrator>)",
+    )
+    r.add_argument(
+        "--low-speed",
+        choices=["stick", "off"],
+        default=None,
+        help="low-speed treatment of free bodies (README, 'Stability'): stick holds bodies at "
+        "rest like static friction, off is the pure model (default: the model's "
+        "mjrft:low_speed, else stick)",
+    )
+    r.add_argument(
+        "--stick-reach",
+        type=_positive_float,
+        default=None,
+        metavar="R",
+        help="the treatment's reach (default: the model's mjrft:stick_reach, else 1)",
     )
     r.add_argument(
         "--record-every",

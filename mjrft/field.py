@@ -5,7 +5,7 @@ geoms once, and then maps any MjData of that model to one wrench per body, compu
 data's current kinematics (``xpos``, ``xmat``, ``cvel``, ``subtree_com``: no lag, no finite
 differences). Two ways to apply it:
 
-* explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d)``; ``mj_step`` — the
+* explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d, user_xfrc=user)``; ``mj_step`` — the
   wrench is held over the step (all RK4 stages see the same force);
 * installed: ``with field.installed(): mj_step(...)`` — in every forward pass (each RK4 stage sees
   its own state) the intruding bodies' rows of ``xfrc_applied`` are set to the user's part plus
@@ -26,6 +26,7 @@ part), and leaving ``installed()`` restores the user's values.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft import _callback
+from mjrft import _callback, lowspeed
 from mjrft.elements import ElementSet
 from mjrft.material import Material
 from mjrft.rft import unit_normal_forces
@@ -101,6 +102,74 @@ XFRC_HISTORY = 4096
 _NO_REGION = np.zeros((2, 3))
 
 
+def _free_rigid(model: mujoco.MjModel, b: int, tagged: set[int]) -> bool:
+    """True if body b moves as one free rigid body the field can see all of (mjrft.lowspeed):
+    a single free joint, no descendant with a joint, mass or intruding geoms, and no equality
+    constraint (connect, weld, joint) on it."""
+    free = mujoco.mjtJoint.mjJNT_FREE
+    if model.body_jntnum[b] != 1 or model.jnt_type[model.body_jntadr[b]] != free:
+        return False
+    for c in range(b + 1, model.nbody):
+        p = c
+        while p > b:
+            p = int(model.body_parentid[p])
+        if p == b and (model.body_jntnum[c] > 0 or c in tagged or model.body_mass[c] > 0.0):
+            return False
+    for e in range(model.neq):
+        kind = int(model.eq_type[e])
+        ids = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
+        if kind == mujoco.mjtEq.mjEQ_JOINT and model.body_jntadr[b] in ids:
+            return False
+        if kind in (mujoco.mjtEq.mjEQ_CONNECT, mujoco.mjtEq.mjEQ_WELD):
+            if int(model.eq_objtype[e]) == mujoco.mjtObj.mjOBJ_SITE:
+                ids = tuple(int(model.site_bodyid[i]) if i >= 0 else -1 for i in ids)
+            if b in ids:
+                return False
+    return True
+
+
+def _scan(base: int, span: int, ctype, sentinel) -> int:
+    """Address in [base - span, base + span) holding ctype(sentinel), or 0."""
+    step = ctypes.sizeof(ctype)
+    for off in range(-span, span, step):
+        if ctype.from_address(base + off).value == sentinel:
+            return base + off
+    return 0
+
+
+def _model_addresses(model: mujoco.MjModel) -> np.ndarray:
+    """Addresses of the live MjModel fields the native treatment reads (mjrft._native M_*).
+
+    ``opt.gravity`` and the body arrays are NumPy views of the model's memory; the scalars
+    ``opt.timestep`` and ``opt.disableflags`` are found next to ``opt.gravity`` (same mjOption
+    struct) by writing a sentinel and restoring it, so later changes by the user are seen.
+    """
+    from mjrft import _native as nt
+
+    opt = model.opt
+    grav = opt.gravity.ctypes.data
+    out = np.zeros(nt.MODEL_WORDS, dtype=np.uint64)
+    dt = opt.timestep
+    try:
+        opt.timestep = 1.2345678901234567e-3
+        out[nt.M_TIMESTEP] = _scan(grav, 512, ctypes.c_double, opt.timestep)
+    finally:
+        opt.timestep = dt
+    flags = opt.disableflags
+    try:
+        opt.disableflags = 0x2A5A5A5
+        out[nt.M_DISABLEFLAGS] = _scan(grav, 512, ctypes.c_int32, 0x2A5A5A5)
+    finally:
+        opt.disableflags = flags
+    if not out[nt.M_TIMESTEP] or not out[nt.M_DISABLEFLAGS]:
+        raise RuntimeError("cannot locate opt.timestep / opt.disableflags in this MuJoCo build")
+    out[nt.M_GRAVITY] = grav
+    out[nt.M_BODY_MASS] = model.body_mass.ctypes.data
+    out[nt.M_BODY_INERTIA] = model.body_inertia.ctypes.data
+    out[nt.M_BODY_GRAVCOMP] = model.body_gravcomp.ctypes.data
+    return out
+
+
 @dataclass(eq=False)
 class _DataState:
     """xfrc ownership of one MjData: user part and rows written (intruding bodies' rows), and
@@ -129,6 +198,9 @@ class GranularField:
         ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
       tolerance: instead of n_triangles, the relative RMS force error wanted per primitive geom
         (e.g. 0.01); the count comes from ``mjrft.geometry.triangles_for_tolerance``.
+      low_speed: "stick" (default) or "off": the low-speed stick/slip treatment of free bodies
+        (``mjrft.lowspeed``); overrides MJCF ``mjrft:low_speed``.
+      stick_reach: the treatment's reach (default 1); overrides MJCF ``mjrft:stick_reach``.
     Raises:
       mjrft.scene.SceneError (a ValueError) naming the geom or field at fault.
     """
@@ -140,11 +212,20 @@ class GranularField:
         *,
         n_triangles: int | None = None,
         tolerance: float | None = None,
+        low_speed: str | None = None,
+        stick_reach: float | None = None,
     ) -> None:
         self.model = model
         self.scene: Scene = scene_from_model(
-            model, material, n_triangles=n_triangles, tolerance=tolerance
+            model,
+            material,
+            n_triangles=n_triangles,
+            tolerance=tolerance,
+            low_speed=low_speed,
+            stick_reach=stick_reach,
         )
+        #: The low-speed treatment (mode, reach).
+        self.low_speed: lowspeed.LowSpeed = self.scene.low_speed
         self.material = self.scene.material
         self.surface_z = self.scene.surface_z
         self.region = self.scene.region
@@ -175,7 +256,17 @@ class GranularField:
             be.body: self._elem_force_all[o : o + len(be.areas)]
             for be, o in zip(self.bodies, offsets, strict=False)
         }
-        self._stats = np.zeros(3, dtype=np.int64)
+        self._stats = np.zeros(5, dtype=np.int64)
+        #: Per body of ``body_ids``: True if the low-speed treatment can act on it (a free rigid
+        #: body: free joint, no jointed or massive descendants, no other intruding body below
+        #: it, not in an equality constraint).
+        self.stick_eligible = np.array(
+            [_free_rigid(model, int(b), set(self.body_ids.tolist())) for b in self.body_ids],
+            dtype=bool,
+        )
+        #: Per body of ``body_ids``: the treatment's decision in the last pass (mjrft.lowspeed
+        #: PURE, STICK or SLIP).
+        self.last_decision = np.zeros(len(self.body_ids), dtype=np.int64)
         #: (nbody, 6) wrench of the most recent forward pass of the installed field (updated in
         #: place: keep a reference if you like).
         self.last_wrench = np.zeros((model.nbody, 6))
@@ -207,7 +298,7 @@ class GranularField:
         self._n_par[nt.P_AY] = self.material.alpha_y0
         if self.region is not None:
             self._n_par[nt.P_USE_REGION] = 1.0
-            self._n_par[nt.P_REGION :] = self.region.ravel()
+            self._n_par[nt.P_REGION : nt.P_REGION + 6] = self.region.ravel()
         self._n_coef = np.ascontiguousarray(self.material.kernel_coefficients)
         t = np.zeros(nt.FIELD_WORDS, dtype=np.uint64)
         t[nt.F_NELEM] = len(self._n_area)
@@ -229,15 +320,27 @@ class GranularField:
         t[nt.F_RING_SIZE] = XFRC_HISTORY
         self._n_dirty = np.ones(len(rows), dtype=np.int64)
         t[nt.F_DIRTY] = self._n_dirty.ctypes.data
+        self._n_par[nt.P_TREAT] = 1.0 if self.low_speed.on else 0.0
+        self._n_par[nt.P_REACH] = self.low_speed.reach
+        self._n_par[nt.P_DSBL_GRAVITY] = float(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+        self._n_model = _model_addresses(self.model)
+        t[nt.F_MODEL] = self._n_model.ctypes.data
+        self._n_eligible = self.stick_eligible.astype(np.int64)
+        t[nt.F_ELIGIBLE] = self._n_eligible.ctypes.data
+        t[nt.F_DECISION] = self.last_decision.ctypes.data
+        self._n_scratch = np.zeros((max(len(self._n_area), 1), 3))
+        t[nt.F_SCRATCH] = self._n_scratch.ctypes.data
         return t
 
     @property
     def stats(self) -> dict[str, int]:
         """Work counters since construction: ``calls`` (evaluations of the field), ``evaluated``
         (triangles handed to the kernel: those of geoms not culled by their bounding sphere) and
-        ``acting`` (triangles that felt a force: submerged and leading)."""
-        c, e, a = (int(x) for x in self._stats)
-        return {"calls": c, "evaluated": e, "acting": a}
+        ``acting`` (triangles that felt a force: submerged and leading), and of the low-speed
+        treatment ``stuck`` and ``slipping`` (body-passes held at rest, or given the force of
+        their free direction of motion; ``mjrft.lowspeed``)."""
+        c, e, a, st, sl = (int(x) for x in self._stats)
+        return {"calls": c, "evaluated": e, "acting": a, "stuck": st, "slipping": sl}
 
     def _pack(self, body: int, items: list[tuple[Intruder, ElementSet]]) -> BodyElements:
         for intr, es in items:
@@ -301,7 +404,8 @@ class GranularField:
     def element_states(self, data: mujoco.MjData) -> list[ElementState]:
         """Per-element world-frame state and RFT force of every body with geoms in the medium.
 
-        Uses data's current kinematics (call ``mj_forward`` first outside a step).
+        Uses data's current kinematics (call ``mj_forward`` first outside a step). Forces are the
+        pure model's (the low-speed treatment acts on whole bodies: see ``wrench``).
         """
         out = []
         for be in self.bodies:
@@ -309,26 +413,50 @@ class GranularField:
             if idx is None:
                 continue
             b = be.body
-            rot = data.xmat[b].reshape(3, 3)
-            pos = be.centroids[idx] @ rot.T + data.xpos[b]
-            if self.region is not None:
-                inside = np.all((pos >= self.region[0]) & (pos <= self.region[1]), axis=1)
-                idx, pos = idx[inside], pos[inside]
-            normal = be.normals[idx] @ rot.T
             # cvel = [w, v] with v at the subtree CoM of the body's root (DESIGN.md section 3).
             w, v0 = data.cvel[b, :3], data.cvel[b, 3:]
-            vel = v0 + _cross(w, pos - data.subtree_com[self.model.body_rootid[b]])
-            area = be.areas[idx]
-            f = unit_normal_forces(pos, normal, area, vel, self.material, self.surface_z)
-            out.append(ElementState(b, idx, pos, normal, area, vel, f))
+            p_ref = data.subtree_com[self.model.body_rootid[b]]
+            out.append(self._state_at(data, be, idx, w, v0, p_ref))
         return out
 
-    def wrench(self, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
-        """RFT wrench on every body, ``xfrc_applied`` layout.
+    def _state_at(
+        self,
+        data: mujoco.MjData,
+        be: BodyElements,
+        idx: np.ndarray,
+        omega: np.ndarray,
+        v_ref: np.ndarray,
+        p_ref: np.ndarray,
+    ) -> ElementState:
+        """Elements idx of a body at its current pose, moving with angular velocity omega (3,)
+        [rad/s] and linear velocity v_ref (3,) [m/s] at the world point p_ref (3,) [m]."""
+        b = be.body
+        rot = data.xmat[b].reshape(3, 3)
+        pos = be.centroids[idx] @ rot.T + data.xpos[b]
+        if self.region is not None:
+            inside = np.all((pos >= self.region[0]) & (pos <= self.region[1]), axis=1)
+            idx, pos = idx[inside], pos[inside]
+        normal = be.normals[idx] @ rot.T
+        vel = v_ref + _cross(omega, pos - p_ref)
+        area = be.areas[idx]
+        f = unit_normal_forces(pos, normal, area, vel, self.material, self.surface_z)
+        return ElementState(b, idx, pos, normal, area, vel, f)
+
+    def wrench(
+        self,
+        data: mujoco.MjData,
+        out: np.ndarray | None = None,
+        *,
+        user_xfrc: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """RFT wrench on every body, ``xfrc_applied`` layout, low-speed treatment included.
 
         Args:
           data: MjData of this model with current kinematics (``mj_forward`` outside a step).
           out: optional (nbody, 6) array to fill.
+          user_xfrc: (nbody, 6) the other applied wrenches you will add to ``xfrc_applied``
+            (world force [N], torque about the CoM [N m]); the treatment balances them when it
+            holds a body at rest. Default: none.
         Returns:
           (nbody, 6): world-frame force [N] then torque [N m] about each body's CoM (xipos);
           zero rows for bodies without intruding geoms or out of the medium.
@@ -340,13 +468,85 @@ class GranularField:
         self._check_finite(data)
         if self._compiled:
             self._wrench_compiled(data, out)
-            return out
-        for st in self.element_states(data):
-            f = st.force
-            out[st.body, :3] = f.sum(axis=0)
-            out[st.body, 3:] = _cross(st.pos - data.xipos[st.body], f).sum(axis=0)
-            self._count(len(st.index), int(np.count_nonzero(np.any(f != 0.0, axis=1))))
+        else:
+            for st in self.element_states(data):
+                f = st.force
+                out[st.body, :3] = f.sum(axis=0)
+                out[st.body, 3:] = _cross(st.pos - data.xipos[st.body], f).sum(axis=0)
+                self._count(len(st.index), int(np.count_nonzero(np.any(f != 0.0, axis=1))))
+        self.last_decision[:] = lowspeed.PURE
+        if self.low_speed.on:
+            self._treat(data, out, user_xfrc)
         return out
+
+    def _wrench_at(
+        self, data: mujoco.MjData, be: BodyElements, idx: np.ndarray, twist: np.ndarray
+    ) -> np.ndarray:
+        """(6,) RFT wrench on elements idx of a body at its pose moving with the world-frame
+        twist (6,) (CoM velocity [m/s], angular velocity [rad/s]); torque about the CoM."""
+        b = be.body
+        com = data.xipos[b]
+        out = np.zeros(6)
+        if self._compiled:
+            from mjrft import _kernel
+
+            m = self.material
+            use_region = self.region is not None
+            region = self.region if use_region else _NO_REGION
+            scratch = np.zeros((len(be.areas), 3))
+            rot = data.xmat[b].reshape(3, 3)
+            for gi, g in enumerate(be.geoms):
+                if not self._geom_may_act(data, int(g)):
+                    continue
+                _kernel.body_wrench(
+                    be.centroids, be.normals, be.areas, be.segments[gi], be.segments[gi + 1],
+                    rot, data.xpos[b], twist[3:], twist[:3], com, com, m.kernel_coefficients,
+                    m.alpha_y0, m.zeta, self.surface_z, use_region, region, out, scratch,
+                )  # fmt: skip
+            return out
+        st = self._state_at(data, be, idx, twist[3:], twist[:3], com)
+        out[:3] = st.force.sum(axis=0)
+        out[3:] = _cross(st.pos - com, st.force).sum(axis=0)
+        return out
+
+    def _treat(self, data: mujoco.MjData, w: np.ndarray, user: np.ndarray | None) -> None:
+        """The low-speed treatment (mjrft.lowspeed.treat) of the eligible bodies in w (nbody, 6)."""
+        m = self.model
+        dt = float(m.opt.timestep)
+        gravity = np.zeros(3)
+        if not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+            gravity = np.array(m.opt.gravity)
+        for k, be in enumerate(self.bodies):
+            b = be.body
+            mass, inertia = float(m.body_mass[b]), np.array(m.body_inertia[b])
+            if not (self.stick_eligible[k] and dt > 0.0 and mass > 0.0 and np.all(inertia > 0)):
+                continue
+            idx = self._candidates(data, be)
+            if idx is None:
+                continue
+            x = data.ximat[b].reshape(3, 3)
+            iw = (x * inertia) @ x.T
+            om = np.array(data.cvel[b, :3])
+            v = data.cvel[b, 3:] + _cross(om, data.xipos[b] - data.subtree_com[self._root[b]])
+            u = np.zeros(6) if user is None else np.asarray(user[b], dtype=float)
+            other = np.concatenate(
+                [mass * gravity * (1.0 - m.body_gravcomp[b]) + u[:3], u[3:] - _cross(om, iw @ om)]
+            )
+            w[b], dec = lowspeed.treat(
+                w[b],
+                lambda tw, be=be, idx=idx: self._wrench_at(data, be, idx, tw),
+                np.concatenate([v, om]),
+                mass,
+                iw,
+                other,
+                dt,
+                self.low_speed.reach,
+            )
+            self.last_decision[k] = dec
+            if dec == lowspeed.STICK:
+                self._stats[3] += 1
+            elif dec == lowspeed.SLIP:
+                self._stats[4] += 1
 
     def _wrench_compiled(self, data: mujoco.MjData, out: np.ndarray) -> None:
         """The hot path: one fused kernel call per evaluated geom block (mjrft._kernel)."""
@@ -379,7 +579,7 @@ class GranularField:
             self._count(evaluated, acting)
 
     def _count(self, evaluated: int, acting: int) -> None:
-        self._stats += (1, evaluated, acting)
+        self._stats[:3] += (1, evaluated, acting)
 
     def _check_finite(self, data: mujoco.MjData) -> None:
         b = self.body_ids
@@ -391,9 +591,14 @@ class GranularField:
             )
             raise FloatingPointError(
                 f"body '{self._body_names[bad]}' has a non-finite position or velocity at time "
-                f"{data.time:.6g} s; the granular field refuses to feed NaN forward (check the "
-                "timestep and actuators)"
+                f"{data.time:.6g} s (step {self._step_index(data)}); the granular field refuses "
+                "to feed NaN forward (check the timestep and actuators)"
             )
+
+    def _step_index(self, data: mujoco.MjData) -> int:
+        """Index of the step being taken (time / timestep; no mujoco call)."""
+        dt = float(self.model.opt.timestep)
+        return round(data.time / dt) if dt > 0 and np.isfinite(data.time) else -1
 
     # ------------------------------------------------------------------ application
     def apply_passive(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
@@ -414,11 +619,13 @@ class GranularField:
                 self._check_finite(data)  # raises, naming the body
                 raise FloatingPointError(f"granular field failed with status {status}")
             return
-        w = self.wrench(data)
         rows = self.body_ids
         current = data.xfrc_applied[rows]
         assigned = np.any(current != st.written, axis=1)
         st.user[assigned] = current[assigned]
+        user = np.zeros((self.model.nbody, 6))
+        user[rows] = st.user
+        w = self.wrench(data, user_xfrc=user)
         total = st.user + w[rows]
         data.xfrc_applied[rows] = total
         st.written[:] = total
@@ -454,6 +661,7 @@ class GranularField:
                 (nt.D_XFRC, data.xfrc_applied),
                 (nt.D_USER, st.user),
                 (nt.D_WRITTEN, st.written),
+                (nt.D_XIMAT, data.ximat),
             ):
                 st.entry[word] = arr.ctypes.data
             _callback.register_data(self.model, key, st.entry.ctypes.data)

