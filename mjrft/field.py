@@ -5,8 +5,8 @@ geoms once, and then maps any MjData of that model to one wrench per body, compu
 data's current kinematics (``xpos``, ``xmat``, ``cvel``, ``subtree_com``: no lag, no finite
 differences). Two ways to apply it:
 
-* explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d, user_xfrc=user)``; ``mj_step`` — the
-  wrench is held over the step (all RK4 stages see the same force);
+* explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d, user_xfrc=user)``;
+  ``mj_step`` — the wrench is held over the step (all RK4 stages see the same force);
 * installed: ``with field.installed(): mj_step(...)`` — in every forward pass (each RK4 stage sees
   its own state) the intruding bodies' rows of ``xfrc_applied`` are set to the user's part plus
   that pass's RFT wrench.
