@@ -49,9 +49,9 @@ import numpy as np
 
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
-#: Default ``reach``: the exact time-stepping boundary. Chosen from the stability map
-#: (benchmarks/RESULTS.md): every cell settles with it, and it leaves the pure model to every
-#: body whose velocity keeps its sense over the step.
+#: Default ``reach``: the exact time-stepping boundary, which leaves the pure model to every body
+#: whose velocity keeps its sense over the step. The stability map (benchmarks/RESULTS.md) is
+#: measured with it: all Euler/implicitfast cells settle. Other values have not been swept yet.
 DEFAULT_REACH = 1.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
 #: force of the free direction.
