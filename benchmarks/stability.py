@@ -661,6 +661,7 @@ def build_cases(args: argparse.Namespace) -> list[Case]:
         for shape in shapes
         for m in masses
         for integ in INTEGRATORS
+        if integ in args.integrators
         for dt in dts
     ]
 
@@ -671,6 +672,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--settle", type=float, default=None, help="settle phase [s] (2; quick 1)")
     p.add_argument("--hold", type=float, default=None, help="hold phase [s] (10; quick 1)")
     p.add_argument("--triangles", type=int, default=N_TRIANGLES, help="triangles per body")
+    p.add_argument(
+        "--integrators", nargs="+", choices=list(INTEGRATORS), default=list(INTEGRATORS),
+        help="integrators to sweep (default: all)",
+    )  # fmt: skip
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     p.add_argument(
         "--out", type=Path, default=Path(__file__).resolve().parent / "stability_results"

@@ -32,18 +32,22 @@ FIELD_WORDS = 22
 # Words of the model-address table (F_MODEL): live MjModel fields the low-speed treatment reads
 # (a user may change them between steps: domain randomisation, a new timestep).
 M_TIMESTEP, M_GRAVITY, M_DISABLEFLAGS, M_BODY_MASS, M_BODY_INERTIA, M_BODY_GRAVCOMP = range(6)
-MODEL_WORDS = 6
+M_INTEGRATOR = 6
+MODEL_WORDS = 7
+# mjtIntegrator.mjINT_RK4 (checked against mujoco by the tests; this module imports no mujoco).
+INT_RK4 = 1
 # Columns of the (G, 5) int64 geom table.
 G_GEOM, G_BODY, G_START, G_STOP, G_ROOT = 0, 1, 2, 3, 4
 # Float64 parameters: surface_z, zeta, alpha_y, use_region, region (6), low-speed treatment on,
-# its reach, MuJoCo's gravity-disable bit.
+# its reach, MuJoCo's gravity-disable bit, mjrft.lowspeed.RK4_HOLD_STEPS.
 P_SURFACE, P_ZETA, P_AY, P_USE_REGION, P_REGION = 0, 1, 2, 3, 4
-P_TREAT, P_REACH, P_DSBL_GRAVITY = 10, 11, 12
-N_PARAMS = 13
+P_TREAT, P_REACH, P_DSBL_GRAVITY, P_RK4_HOLD = 10, 11, 12, 13
+N_PARAMS = 14
 # Words of a per-MjData entry.
 D_XPOS, D_XMAT, D_XIPOS, D_CVEL, D_SUBTREE_COM, D_GEOM_XPOS, D_XFRC = 0, 1, 2, 3, 4, 5, 6
 D_USER, D_WRITTEN, D_XIMAT = 7, 8, 9
-DATA_WORDS = 10
+D_TIME, D_RK4 = 10, 11  # address of d->time; the MjData's RK4 stage record (rk4_hold)
+DATA_WORDS = 12
 # Work counters (F_STATS): passes, triangles evaluated, acting, bodies stuck, bodies slipping
 # on the free direction's force (mjrft.lowspeed).
 N_STATS = 5
@@ -119,11 +123,39 @@ def _first_bad_body(bodies, xpos, cvel):
     return -1
 
 
+@numba.njit(cache=True)
+def rk4_hold(t, h, rec):
+    """True if a forward pass at time t [s] is stage 2, 3 or 4 of an RK4 step whose stage 1 this
+    field evaluated; then the bodies flagged at stage 1 (treated, or reversing within
+    ``RK4_HOLD_STEPS``) keep that stage's wrench in ``xfrc_applied`` (held), and the others
+    feel the pure model of each stage.
+
+    MuJoCo's RK4 (``mj_RungeKutta``) runs its stages at t0, t0 + h/2, t0 + h/2, t0 + h, with the
+    stage times computed as ``t0 + c h``; the same expression here matches them exactly. rec
+    (2 + tagged bodies,) is the MjData's record: time of the last evaluated pass, the passes
+    since (1..4), then 1 per body to hold (written by ``step``; unused here). Any
+    other pattern (a user's ``mj_forward``, a new step at t0 + h) evaluates afresh, which is
+    always safe. Why hold: the time-stepping stick needs the force constant over the step to end
+    it at rest (per stage it keeps 3/8 of the velocity), and RK4's stage combination does not
+    damp a torque that jumps with the sign of a slow spin (benchmarks/RESULTS.md, "RK4").
+    """
+    n = rec[1]
+    if (n == 1.0 or n == 2.0) and t == rec[0] + 0.5 * h:
+        rec[1] = n + 1.0
+        return True
+    if n == 3.0 and t == rec[0] + 1.0 * h:
+        rec[1] = 4.0
+        return True
+    rec[0] = t
+    rec[1] = 1.0
+    return False
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _treat_body(
     b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos, cvel,
     subtree_com, user, mass, inertia, gvec, dt, reach, co, ay, zeta, surface_z, use_region,
-    region, scratch, w,
+    region, scratch, w, ab,
 ):  # fmt: skip
     """The low-speed treatment of one free body (mjrft.lowspeed.treat, compiled).
 
@@ -131,8 +163,9 @@ def _treat_body(
     treated one. user (6,): the user's xfrc row; gvec (3,) gravity [m/s^2] acting on the body;
     mass [kg], inertia (3,) principal moments [kg m^2] in the inertial frame ximat[b]; dt [s].
     cull_row (G,): 1 where the geom row is culled this pass. scratch (n_el, 3): element forces
-    of the second evaluation (the field's per-element record keeps the pure model). Returns the
-    decision (mjrft.lowspeed PURE, STICK or SLIP).
+    of the second evaluation (the field's per-element record keeps the pure model). ab (2,):
+    set to |xi|^2_M and <d_xi, xi>_M (mjrft.lowspeed.keeps_sense is ab[0] + steps ab[1] > 0)
+    when the body is tested. Returns the decision (mjrft.lowspeed PURE, STICK or SLIP).
     """
     if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
         return 0
@@ -170,13 +203,15 @@ def _treat_body(
         v_free[c] = v[c] + dt * (gvec[c] + user[c] / mass)
     om_free = om + dt * (ii @ tau)
     dom_pure = dt * (ii @ w[3:])
-    dot = 0.0
+    # <probe, xi>_M = |xi|^2_M + reach <d_xi, xi>_M, d_xi the predicted change over the step.
+    sq = mass * (v @ v) + om @ iom
+    dxi = 0.0
     for c in range(3):
-        probe_l = v[c] + reach * (v_free[c] - v[c] + dt * w[c] / mass)
-        dot += mass * probe_l * v[c]
-    probe_a = om + reach * (om_free - om + dom_pure)
-    dot += probe_a @ iom
-    if dot > 0.0:
+        dxi += (v_free[c] - v[c] + dt * w[c] / mass) * mass * v[c]
+    dxi += (om_free - om + dom_pure) @ iom
+    ab[0] = sq
+    ab[1] = dxi
+    if sq + reach * dxi > 0.0:
         return 0
     n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
     if n2 > 0.0:
@@ -219,7 +254,7 @@ def _gravity(mdl, b, dsbl_bit):
 @numba.njit(cache=True, error_model="numpy")
 def _treat_all(
     mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos, xmat,
-    xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, wrench, stats,
+    xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, wrench, stats, slow,
 ):  # fmt: skip
     """Apply the low-speed treatment to every eligible tagged body with a geom in play.
 
@@ -230,8 +265,10 @@ def _treat_all(
     mass_all = numba.carray(f64_ptr(mdl[M_BODY_MASS]), nbody)
     inertia_all = numba.carray(f64_ptr(mdl[M_BODY_INERTIA]), (nbody, 3))
     dsbl = np.int32(par[P_DSBL_GRAVITY])
+    ab = np.zeros(2)
     for k in range(bodies.shape[0]):
         b = bodies[k]
+        slow[k] = False
         if not eligible[k] or not dt > 0.0:
             continue
         in_play = False
@@ -240,13 +277,16 @@ def _treat_all(
                 in_play = True
         if not in_play:  # nothing of the body can touch the medium: no force, nothing to treat
             continue
+        ab[0] = 0.0
+        ab[1] = 0.0
         d = _treat_body(
             b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos,
             cvel, subtree_com, user[k], mass_all[b], inertia_all[b], _gravity(mdl, b, dsbl), dt,
             par[P_REACH], co, par[P_AY], par[P_ZETA], par[P_SURFACE], par[P_USE_REGION] != 0.0,
-            region, scratch, wrench[b],
+            region, scratch, wrench[b], ab,
         )  # fmt: skip
         decision[k] = d
+        slow[k] = d != 0 or ab[0] + par[P_RK4_HOLD] * ab[1] <= 0.0
         if d == 1:
             stats[3] += 1
         elif d == 2:
@@ -275,6 +315,19 @@ def step(field_addr, data_addr):
     bad = _first_bad_body(bodies, xpos, cvel)
     if bad >= 0:
         return -1 - bad
+    mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
+    rk4 = numba.carray(i32_ptr(mdl[M_INTEGRATOR]), 1)[0] == INT_RK4
+    rec = numba.carray(f64_ptr(e[D_RK4]), 2 + n_bt)
+    # keep[b]: body b keeps the wrench its RK4 step's first stage wrote (flagged slow there).
+    keep = np.zeros(nbody, np.bool_)
+    held = False
+    if rk4:
+        t = numba.carray(f64_ptr(e[D_TIME]), 1)[0]
+        h = numba.carray(f64_ptr(mdl[M_TIMESTEP]), 1)[0]
+        held = rk4_hold(t, h, rec)
+        if held:
+            for k in range(n_bt):
+                keep[bodies[k]] = rec[2 + k] != 0.0
     ngeom_model = 0
     for g in range(n_geom):
         ngeom_model = max(ngeom_model, gint[g, G_GEOM] + 1)
@@ -282,6 +335,8 @@ def step(field_addr, data_addr):
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
     for b in range(nbody):
+        if keep[b]:
+            continue
         for c in range(6):
             last[b, c] = 0.0
     evaluated = 0
@@ -289,6 +344,8 @@ def step(field_addr, data_addr):
     cull_row = np.zeros(n_geom, np.int64)
     for g in range(n_geom):
         geom, b = gint[g, G_GEOM], gint[g, G_BODY]
+        if keep[b]:
+            continue
         start, stop = gint[g, G_START], gint[g, G_STOP]
         if _culled(geom_xpos, geom, grb[g], surface_z, use_region, region):
             cull_row[g] = 1
@@ -306,7 +363,8 @@ def step(field_addr, data_addr):
             region, last[b], elem_force,
         )  # fmt: skip
         evaluated += stop - start
-    stats[0] += 1
+    if evaluated or not held:
+        stats[0] += 1
     stats[1] += evaluated
     stats[2] += acting
     # xfrc_applied ownership (mjrft.field): a row that differs from what was written was
@@ -321,25 +379,28 @@ def step(field_addr, data_addr):
             for c in range(6):
                 user[k, c] = xfrc[b, c]
     decision = numba.carray(i64_ptr(f[F_DECISION]), n_bt)
-    for k in range(n_bt):
-        decision[k] = 0
-    if par[P_TREAT] != 0.0:
-        mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
-        eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
-        ximat = numba.carray(f64_ptr(e[D_XIMAT]), (nbody, 3, 3))
-        scratch = numba.carray(f64_ptr(f[F_SCRATCH]), (n_el, 3))
-        _treat_all(
-            mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos,
-            xmat, xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, last,
-            stats,
-        )  # fmt: skip
+    if not held:  # a held stage keeps its step's decisions; its other bodies feel the pure model
+        for k in range(n_bt):
+            decision[k] = 0
+        slow = np.zeros(n_bt, np.bool_)
+        if par[P_TREAT] != 0.0:
+            eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
+            ximat = numba.carray(f64_ptr(e[D_XIMAT]), (nbody, 3, 3))
+            scratch = numba.carray(f64_ptr(f[F_SCRATCH]), (n_el, 3))
+            _treat_all(
+                mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos,
+                xmat, xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch,
+                last, stats, slow,
+            )  # fmt: skip
+        for k in range(n_bt):
+            rec[2 + k] = 1.0 if slow[k] else 0.0
     ring_size = f[F_RING_SIZE]
     ring = numba.carray(f64_ptr(f[F_RING]), (ring_size + 1, 2, n_bt, 6))
     slot = int(ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
     for k in range(n_bt):
         b = bodies[k]
         for c in range(6):
-            total = user[k, c] + last[b, c]
+            total = xfrc[b, c] if keep[b] else user[k, c] + last[b, c]
             xfrc[b, c] = total
             written[k, c] = total
             ring[1 + slot, 0, k, c] = total
@@ -378,6 +439,7 @@ def batch_wrench(
     cull_row = np.zeros(n_geom, np.int64)
     user = np.empty((n_bt, 6))
     decision = np.empty(n_bt, np.int64)
+    slow = np.empty(n_bt, np.bool_)
     treat = par[P_TREAT] != 0.0
     mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
     eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
@@ -403,7 +465,7 @@ def batch_wrench(
                 mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area,
                 geom_xpos[s], xmat[s].reshape((-1, 3, 3)), xpos[s],
                 ximat[s].reshape((-1, 3, 3)), xipos[s], cvel[s], subtree_com[s], user, co, par,
-                region, elem_force, out[s], stats,
+                region, elem_force, out[s], stats, slow,
             )  # fmt: skip
     stats[0] += n_sim
     stats[1] += evaluated.sum()

@@ -7,9 +7,10 @@ differences). Two ways to apply it:
 
 * explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d, user_xfrc=user)``;
   ``mj_step`` — the wrench is held over the step (all RK4 stages see the same force);
-* installed: ``with field.installed(): mj_step(...)`` — in every forward pass (each RK4 stage sees
-  its own state) the intruding bodies' rows of ``xfrc_applied`` are set to the user's part plus
-  that pass's RFT wrench.
+* installed: ``with field.installed(): mj_step(...)`` — in every forward pass the intruding
+  bodies' rows of ``xfrc_applied`` are set to the user's part plus that pass's RFT wrench; in an
+  RK4 step, bodies the low-speed treatment acts on (or about to) keep the wrench of the first
+  stage over the other three (``_native.rk4_hold``), moving bodies are evaluated in every stage.
 
 Why ``xfrc_applied`` and not ``qfrc_passive``: MuJoCo's force/torque sensors (load cells) see
 external body forces only through ``cfrc_ext``, which is built from ``xfrc_applied`` and contacts.
@@ -27,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -141,8 +143,9 @@ def _model_addresses(model: mujoco.MjModel) -> np.ndarray:
     """Addresses of the live MjModel fields the native treatment reads (mjrft._native M_*).
 
     ``opt.gravity`` and the body arrays are NumPy views of the model's memory; the scalars
-    ``opt.timestep`` and ``opt.disableflags`` are found next to ``opt.gravity`` (same mjOption
-    struct) by writing a sentinel and restoring it, so later changes by the user are seen.
+    ``opt.timestep``, ``opt.disableflags`` and ``opt.integrator`` are found next to
+    ``opt.gravity`` (same mjOption struct) by writing a sentinel and restoring it, so later
+    changes by the user are seen.
     """
     from mjrft import _native as nt
 
@@ -161,8 +164,16 @@ def _model_addresses(model: mujoco.MjModel) -> np.ndarray:
         out[nt.M_DISABLEFLAGS] = _scan(grav, 512, ctypes.c_int32, 0x2A5A5A5)
     finally:
         opt.disableflags = flags
-    if not out[nt.M_TIMESTEP] or not out[nt.M_DISABLEFLAGS]:
-        raise RuntimeError("cannot locate opt.timestep / opt.disableflags in this MuJoCo build")
+    integrator = opt.integrator
+    try:
+        opt.integrator = 0x2A5A5A6
+        out[nt.M_INTEGRATOR] = _scan(grav, 512, ctypes.c_int32, 0x2A5A5A6)
+    finally:
+        opt.integrator = integrator
+    if not (out[nt.M_TIMESTEP] and out[nt.M_DISABLEFLAGS] and out[nt.M_INTEGRATOR]):
+        raise RuntimeError(
+            "cannot locate opt.timestep / opt.disableflags / opt.integrator in this MuJoCo build"
+        )
     out[nt.M_GRAVITY] = grav
     out[nt.M_BODY_MASS] = model.body_mass.ctypes.data
     out[nt.M_BODY_INERTIA] = model.body_inertia.ctypes.data
@@ -170,15 +181,30 @@ def _model_addresses(model: mujoco.MjModel) -> np.ndarray:
     return out
 
 
+def _time_address(data: mujoco.MjData) -> int:
+    """Address of the scalar ``data.time``, found just before ``data.energy`` (mjData declares
+    ``time`` then ``energy[2]``) by writing a sentinel and restoring it."""
+    t = data.time
+    try:
+        data.time = -1.2345678901234567e-300
+        addr = _scan(data.energy.ctypes.data, 64, ctypes.c_double, data.time)
+    finally:
+        data.time = t
+    if not addr:
+        raise RuntimeError("cannot locate MjData.time in this MuJoCo build")
+    return addr
+
+
 @dataclass(eq=False)
 class _DataState:
-    """xfrc ownership of one MjData: user part and rows written (intruding bodies' rows), and
-    the address table the native pass reads."""
+    """xfrc ownership of one MjData: user part and rows written (intruding bodies' rows), its
+    RK4 stage record (mjrft._native.rk4_hold), and the address table the native pass reads."""
 
     ref: weakref.ref
     user: np.ndarray
     written: np.ndarray
     entry: np.ndarray
+    rk4: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # + tagged bodies
     finalizer: weakref.finalize | None = None
 
 
@@ -267,6 +293,7 @@ class GranularField:
         #: Per body of ``body_ids``: the treatment's decision in the last pass (mjrft.lowspeed
         #: PURE, STICK or SLIP).
         self.last_decision = np.zeros(len(self.body_ids), dtype=np.int64)
+        self._rk4_slow = np.zeros(len(self.body_ids), dtype=bool)  # see _native.rk4_hold
         #: (nbody, 6) wrench of the most recent forward pass of the installed field (updated in
         #: place: keep a reference if you like).
         self.last_wrench = np.zeros((model.nbody, 6))
@@ -323,6 +350,7 @@ class GranularField:
         self._n_par[nt.P_TREAT] = 1.0 if self.low_speed.on else 0.0
         self._n_par[nt.P_REACH] = self.low_speed.reach
         self._n_par[nt.P_DSBL_GRAVITY] = float(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
+        self._n_par[nt.P_RK4_HOLD] = lowspeed.RK4_HOLD_STEPS
         self._n_model = _model_addresses(self.model)
         t[nt.F_MODEL] = self._n_model.ctypes.data
         self._n_eligible = self.stick_eligible.astype(np.int64)
@@ -461,6 +489,15 @@ class GranularField:
           (nbody, 6): world-frame force [N] then torque [N m] about each body's CoM (xipos);
           zero rows for bodies without intruding geoms or out of the medium.
         """
+        out = self._pure_wrench(data, out)
+        self.last_decision[:] = lowspeed.PURE
+        self._rk4_slow[:] = False
+        if self.low_speed.on:
+            self._treat(data, out, user_xfrc)
+        return out
+
+    def _pure_wrench(self, data: mujoco.MjData, out: np.ndarray | None = None) -> np.ndarray:
+        """(nbody, 6) RFT wrench of the pure model (no low-speed treatment); see ``wrench``."""
         if out is None:
             out = np.zeros((self.model.nbody, 6))
         else:
@@ -474,9 +511,6 @@ class GranularField:
                 out[st.body, :3] = f.sum(axis=0)
                 out[st.body, 3:] = _cross(st.pos - data.xipos[st.body], f).sum(axis=0)
                 self._count(len(st.index), int(np.count_nonzero(np.any(f != 0.0, axis=1))))
-        self.last_decision[:] = lowspeed.PURE
-        if self.low_speed.on:
-            self._treat(data, out, user_xfrc)
         return out
 
     def _wrench_at(
@@ -532,10 +566,11 @@ class GranularField:
             other = np.concatenate(
                 [mass * gravity * (1.0 - m.body_gravcomp[b]) + u[:3], u[3:] - _cross(om, iw @ om)]
             )
+            twist, pure = np.concatenate([v, om]), w[b].copy()
             w[b], dec = lowspeed.treat(
-                w[b],
+                pure,
                 lambda tw, be=be, idx=idx: self._wrench_at(data, be, idx, tw),
-                np.concatenate([v, om]),
+                twist,
                 mass,
                 iw,
                 other,
@@ -543,6 +578,9 @@ class GranularField:
                 self.low_speed.reach,
             )
             self.last_decision[k] = dec
+            self._rk4_slow[k] = dec != lowspeed.PURE or not lowspeed.keeps_sense(
+                pure, twist, mass, iw, other, dt, lowspeed.RK4_HOLD_STEPS
+            )
             if dec == lowspeed.STICK:
                 self._stats[3] += 1
             elif dec == lowspeed.SLIP:
@@ -620,13 +658,29 @@ class GranularField:
                 raise FloatingPointError(f"granular field failed with status {status}")
             return
         rows = self.body_ids
-        current = data.xfrc_applied[rows]
+        keep = np.zeros(len(rows), dtype=bool)  # bodies holding their RK4 step's first wrench
+        held = False
+        if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            from mjrft._native import rk4_hold
+
+            held = bool(rk4_hold(data.time, model.opt.timestep, st.rk4))
+            if held:
+                keep = st.rk4[2:] != 0.0
+                if keep.all():
+                    return
+        current = np.array(data.xfrc_applied[rows])
         assigned = np.any(current != st.written, axis=1)
         st.user[assigned] = current[assigned]
         user = np.zeros((self.model.nbody, 6))
         user[rows] = st.user
-        w = self.wrench(data, user_xfrc=user)
+        if held:  # the other bodies feel the pure model of this stage, decisions unchanged
+            w = self._pure_wrench(data)
+            w[rows[keep]] = self.last_wrench[rows[keep]]
+        else:
+            w = self.wrench(data, user_xfrc=user)
+            st.rk4[2:] = self._rk4_slow
         total = st.user + w[rows]
+        total[keep] = current[keep]
         data.xfrc_applied[rows] = total
         st.written[:] = total
         counter = int(self._ring[0, 0, 0, 0])
@@ -647,6 +701,7 @@ class GranularField:
             user=self._adopt(current),
             written=current.copy(),
             entry=np.zeros(_native_words(), dtype=np.uint64),
+            rk4=np.zeros(2 + len(self.body_ids)),
         )
         if self._table is not None:
             from mjrft import _native as nt
@@ -662,8 +717,10 @@ class GranularField:
                 (nt.D_USER, st.user),
                 (nt.D_WRITTEN, st.written),
                 (nt.D_XIMAT, data.ximat),
+                (nt.D_RK4, st.rk4),
             ):
                 st.entry[word] = arr.ctypes.data
+            st.entry[nt.D_TIME] = _time_address(data)
             _callback.register_data(self.model, key, st.entry.ctypes.data)
         st.finalizer = weakref.finalize(data, self._forget, key, st)
         self._data[key] = st

@@ -50,9 +50,17 @@ import numpy as np
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
 #: Default ``reach``: the exact time-stepping boundary, which leaves the pure model to every body
-#: whose velocity keeps its sense over the step. The stability map (benchmarks/RESULTS.md) is
-#: measured with it: all Euler/implicitfast cells settle. Other values have not been swept yet.
+#: whose velocity keeps its sense over the step. Measured (benchmarks/RESULTS.md, "RK4 and the
+#: reach"): larger reaches settle more slowly lowered RK4 bodies (reach 8: 59/60 cells against
+#: 46/60), but from reach 4 on the slip force W(xi_free) of a spinning body can do positive work
+#: on its actual motion (energy gains up to 1e4 x the issue-4 tolerance, every integrator).
 DEFAULT_REACH = 1.0
+#: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
+#: acted on, or whose motion would reverse within this many steps of the change predicted at
+#: the step's start; other bodies feel the pure model in every stage (mjrft._native.rk4_hold).
+#: Measured at reach 1 (benchmarks/RESULTS.md): 2, 4, 8 settle 38, 46, 51 of 60 slowly lowered
+#: RK4 cells (all drops settle), but with 2 and 8 a thrown spinning body gains energy in a step.
+RK4_HOLD_STEPS = 4.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
 #: force of the free direction.
 PURE, STICK, SLIP = 0, 1, 2
@@ -89,6 +97,28 @@ def inertia_dot(a: np.ndarray, b: np.ndarray, mass: float, inertia: np.ndarray) 
     return float(mass * (a[:3] @ b[:3]) + a[3:] @ (inertia @ b[3:]))
 
 
+def keeps_sense(
+    pure: np.ndarray,
+    twist: np.ndarray,
+    mass: float,
+    inertia: np.ndarray,
+    other: np.ndarray,
+    dt: float,
+    steps: float,
+) -> bool:
+    """True if the twist keeps its sense under ``steps`` times the change predicted for a step.
+
+    ``<xi + steps dt M^-1 (f + W(xi)), xi>_M > 0``; arguments as in :func:`treat` (world frame,
+    twists [m/s, rad/s], wrenches [N, N m] about the CoM). With ``steps = reach`` this is the
+    treatment's first test; with ``RK4_HOLD_STEPS`` it decides which bodies an RK4 step holds.
+    """
+    twist = np.asarray(twist, dtype=float)
+    change = np.asarray(pure, dtype=float) + np.asarray(other, dtype=float)
+    accel = np.concatenate([change[:3] / mass, np.linalg.solve(inertia, change[3:])])
+    probe = twist + steps * dt * accel
+    return inertia_dot(probe, twist, mass, inertia) > 0.0
+
+
 def treat(
     pure: np.ndarray,
     wrench_at: Callable[[np.ndarray], np.ndarray],
@@ -119,8 +149,7 @@ def treat(
         return np.concatenate([w[:3] / mass, np.linalg.solve(inertia, w[3:])])
 
     v_free = twist + dt * m_inv(other)
-    probe = twist + reach * (v_free - twist + dt * m_inv(pure))
-    if inertia_dot(probe, twist, mass, inertia) > 0.0:
+    if keeps_sense(pure, twist, mass, inertia, other, dt, reach):
         return pure.copy(), PURE
     n2 = inertia_dot(v_free, v_free, mass, inertia)
     if n2 > 0.0:

@@ -392,19 +392,78 @@ def test_user_xfrc_is_neither_lost_nor_double_counted(integrator):
     assert not np.allclose(a, c, atol=1e-5)
 
 
-def test_rk4_evaluates_the_field_in_every_stage():
-    m = ball_model(option='integrator="RK4"')
+def test_rk4_evaluates_a_moving_body_in_every_stage():
+    m = heavy_model(option='integrator="RK4"')
     fld = GranularField(m)
     d = mujoco.MjData(m)
-    set_motion(d)
+    set_motion(d, **SHOT)
     with fld.installed():
         for n in range(1, 4):
             mujoco.mj_step(m, d)
             assert fld.stats["calls"] == 4 * n  # natively handled passes count too
-    m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER  # read live by the native pass
     with fld.installed():
         mujoco.mj_step(m, d)
     assert fld.stats["calls"] == 13
+
+
+def test_rk4_holds_a_body_at_rest_over_the_step():
+    """A body the treatment holds keeps its first stage's wrench over the step: one evaluated
+    pass per step, and it ends each step exactly at rest."""
+    m = ball_model(option='integrator="RK4"')
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    with fld.installed():
+        for _ in range(300):  # released at rest, partly submerged: sinks a little and stops
+            mujoco.mj_step(m, d)
+        calls, stuck = fld.stats["calls"], fld.stats["stuck"]
+        for n in range(1, 4):
+            mujoco.mj_step(m, d)
+            assert fld.stats["calls"] == calls + n and fld.stats["stuck"] == stuck + n
+            assert np.abs(d.qvel).max() <= 1e-15  # at rest to round-off
+        mujoco.mj_forward(m, d)  # a user's forward pass between steps is evaluated afresh
+        mujoco.mj_step(m, d)  # ... and so is the next step's first stage, at the same time
+        assert fld.stats["calls"] == calls + 5
+
+
+def test_rk4_stage_constant_matches_mujoco():
+    from mjrft import _native
+
+    assert _native.INT_RK4 == int(mujoco.mjtIntegrator.mjINT_RK4)
+
+
+def test_rk4_hold_recognises_only_the_stage_pattern():
+    from mjrft._native import rk4_hold
+
+    h, t0 = 0.003, 0.7
+    rec = np.zeros(2)
+    # one step: stage 1 evaluated, 2-4 held; the next step's stage 1 (t0 + h) evaluated again
+    seq = [t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 1.0 * h, t0 + h, (t0 + h) + 0.5 * h]
+    assert [rk4_hold(t, h, rec) for t in seq] == [False, True, True, True, False, True]
+    rec[:] = 0.0
+    # anything else is evaluated: a pass before any stage 1, a repeated time, a third pass at
+    # the half step, a pass that skips ahead
+    seq = [t0 + 0.5 * h, t0, t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 3.0 * h]
+    assert [rk4_hold(t, h, rec) for t in seq] == [False, False, False, True, True, False, False]
+
+
+@pytest.mark.parametrize("start", ["moving", "resting"])
+def test_python_material_path_follows_the_same_rk4_rule(start):
+    """A medium given as Python callables (no native table) follows the same RK4 rule."""
+    m = heavy_model(option='integrator="RK4"')
+    compiled = GranularField(m)
+    mat = mjrft.Material.from_callables(
+        compiled.material.fourier.alpha_x, compiled.material.fourier.alpha_z,
+        compiled.material.zeta, name="glass, callables",
+    )  # fmt: skip
+    fld = GranularField(m, material=mat)
+    assert fld._table is None  # the Python path
+    motion = SHOT if start == "moving" else {"v": (0.0, 0.0, 0.0), "w": (0.0, 0.0, 0.0)}
+    a, _ = simulate(m, 40, fld=fld, motion=motion)
+    b, _ = simulate(m, 40, fld=compiled, motion=motion)
+    np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-9)
+    held = compiled.stats["calls"] < 4 * 40  # some steps held (resting), none (moving)
+    assert held == (start == "resting")
 
 
 def test_compilation_works_while_installed_and_callback_restored():
