@@ -2,20 +2,25 @@
 
 Layout, chosen from measurements on the project's 2-core machine (benchmarks/kernel.py):
 
-1. a gather pass picks the submerged, leading elements of a chunk (unit velocity, depth * area)
-   into contiguous scratch arrays; trailing and dry elements cost only this pass;
-2. ``_angles`` (branch-free, so LLVM vectorises it with AVX2): the frame of DESIGN 2.2, the sines
-   and cosines of beta and gamma as normalised vector components (beta and gamma are never
-   formed), the Fourier sums via angle-addition identities, and the arguments of the two
-   transcendental functions;
-3. ``_transcendental``: tanh via one exp and atanh via one log (libm's tanh/atanh cost 3-4x more
-   here), in loops of independent iterations;
-4. ``_combine``: the element forces of DESIGN 2.8.
+1. ``body_wrench`` only: a branch-free pass puts a chunk's centroids, normals and velocities in
+   the world frame (vectorised);
+2. ``_gather``, scalar and branch-free: every element is written to the next scratch slot and
+   the slot advances only if the element acts (submerged, inside the region, leading), so
+   trailing and dry elements cost only this pass and no branch is mispredicted;
+3. ``_evaluate``, one branch-free loop that LLVM vectorises with AVX2: the frame of DESIGN 2.2,
+   the sines and cosines of beta and gamma as normalised vector components (beta and gamma are
+   never formed), the Fourier sums by angle addition, and tanh / atanh of f1 / f23 from exp and
+   log polynomials on their bounded arguments (libm's exp/log are scalar calls: 8 ns each
+   here). Per element: 3 square roots and 2 divisions, the rest multiply-adds;
+4. a scalar pass scatters the element forces and accumulates the wrench.
 
-Both drivers use these stages: ``forces`` over world-frame element arrays, and ``body_wrench``,
+Both drivers share stages 2-4: ``forces`` over world-frame element arrays, and ``body_wrench``,
 which transforms a body's elements from its frame, evaluates only submerged leading ones, writes
 per-element forces and accumulates the body's wrench. Results equal ``mjrft.rft.numpy_forces`` to
-round-off (tests/test_kernel.py). Compiled on first use and cached on disk (``cache=True``).
+round-off (tests/test_kernel.py) and do not depend on an element's slot in a chunk. Compiled on
+first use and cached on disk (``cache=True``). Numba's cache does not track callees: after
+editing this file, delete ``mjrft/__pycache__/*.nb[ic]`` or ``mjrft._native`` keeps running the
+old kernel (its cached code includes this one).
 """
 
 from __future__ import annotations
@@ -24,6 +29,9 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 from mjrft.rft import (
     _F1_GAIN,
@@ -44,6 +52,36 @@ _C23 = _F23_GAIN / _F23_NORM
 #: Elements per chunk: scratch arrays stay in L1 cache.
 CHUNK = 256
 _JIT = {"cache": True, "error_model": "numpy"}
+
+# exp on the bounded argument of tanh in f1: x = 2 (slope |v1| - shift) with |v1| <= 1 lies in
+# [_EXP_LO, _EXP_HI]; exp(x) = e^mid p((x - mid) / 16)^16, mid the centre, p the Taylor
+# polynomial of exp of degree _EXP_DEGREE (truncation below 1e-18 for |y| <= 0.23; the four
+# squarings multiply the rounding error by 16: ~2e-15 relative).
+_EXP_LO = -2.0 * _F1_SHIFT
+_EXP_HI = 2.0 * (_F1_SLOPE - _F1_SHIFT)
+_EXP_MID = 0.5 * (_EXP_LO + _EXP_HI)
+_EXP_SCALE = math.exp(_EXP_MID)
+_EXP_DEGREE = 12
+_EXP_TAYLOR = tuple(1.0 / math.factorial(i) for i in range(_EXP_DEGREE + 1))
+# log on (1 + u) / (1 - u), u = slope |v23| - shift in f23 (ratio in [0.013, 4.6]): five exact
+# power-of-two steps bring the ratio into [2^-0.5, 2^0.5], then log r = 2 atanh(s),
+# s = (r - 1) / (r + 1), |s| <= 0.1716, by its odd series to s^19 (next term < 1e-17 relative).
+_LOG_STEPS = (  # (threshold on the ratio, below (True) or above, factor, log2 of the factor)
+    (2.0**-2.2, True, 16.0, 4.0),
+    (2.0**1.1, False, 0.25, -2.0),
+    (2.0**-1.1, True, 4.0, 2.0),
+    (2.0**0.5, False, 0.5, -1.0),
+    (2.0**-0.5, True, 2.0, 1.0),
+)
+_LOG_TERMS = 10
+_LN2 = math.log(2.0)
+# 1 / rho for rho = 1 - eps, |eps| <= 1 - HORIZONTAL_PLATE_NZ^2 (< 2e-3): geometric series to eps^6.
+_INV_TERMS = 7
+#: Velocities are rescaled in the gather pass when |w|^2 leaves this range, so that the products
+#: of up to three speed-scaled factors in _evaluate neither overflow nor underflow.
+_W2_MIN, _W2_MAX = 1e-60, 1e60
+#: In-plane speed |v23| below this counts as zero (gamma = 0): f23 there is below 1e-99.
+_VN_MIN = 1e-100
 
 
 def combined_coefficients(fourier) -> np.ndarray:
@@ -70,127 +108,157 @@ def combined_coefficients(fourier) -> np.ndarray:
     return np.array(comb(fourier.a, fourier.b) + comb(fourier.c, fourier.d), dtype=np.float64)
 
 
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a * b + c rounded once (llvm.fma): vectorises to vfmadd, and the vector body and the
+    scalar remainder of a loop round identically (LLVM's "contract" flag would not promise that,
+    and results would depend on an element's slot in the chunk)."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [d], ir.FunctionType(d, [d, d, d]))
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@numba.njit(inline="always", **_JIT)
+def _exp_f1(x):
+    """exp(x) for x in [_EXP_LO, _EXP_HI] (the f1 argument) without libm: vectorisable."""
+    y = (x - _EXP_MID) * (1.0 / 16.0)
+    p = _EXP_TAYLOR[_EXP_DEGREE]
+    for i in range(_EXP_DEGREE - 1, -1, -1):
+        p = _fma(p, y, _EXP_TAYLOR[i])
+    p = p * p
+    p = p * p
+    p = p * p
+    p = p * p
+    return p * _EXP_SCALE
+
+
 @numba.njit(**_JIT)
-def _angles(k, nx, ny, nz, vx, vy, vz, co, ex_, ey_, a_, t1, t2, az_, ax_):
-    """Stage 2 for k gathered elements (unit n, unit v, world frame); branch-free."""
+def _evaluate(buf, k, co, ay, zeta):
+    """Forces on k gathered elements (rows 0-8 of buf) into rows 9-11; branch-free, one pass.
+
+    Rows: 0-2 unit normal n, 3-4 horizontal direction h of e2 (unnormalised), 5-7 velocity w
+    (any scale with |w|^2 in [_W2_MIN, _W2_MAX]), 8 depth * area [m^3]; all world frame.
+    Only sqrt and division are hardware operations: beta and gamma are never formed (their
+    sines and cosines are normalised components), the Fourier sums follow by angle addition,
+    and exp / log are the bounded-range polynomials above, so LLVM vectorises the loop.
+    """
     for j in range(k):
-        # Frame (DESIGN 2.2): e2 from n, or from v for a nearly horizontal plate, or world x.
-        flat = abs(nz[j]) >= HORIZONTAL_PLATE_NZ
-        hx = vx[j] if flat else nx[j]
-        hy = vy[j] if flat else ny[j]
-        h2 = hx * hx + hy * hy
-        none = h2 == 0.0
-        ih = 1.0 / math.sqrt(1.0 if none else h2)
-        ex = 1.0 if none else hx * ih
-        ey = 0.0 if none else hy * ih
-        # beta = atan2(nz, n2) + pi/2: cos beta = -nz / r, sin beta = n2 / r.
-        n2 = nx[j] * ex + ny[j] * ey
-        irn = 1.0 / math.sqrt(n2 * n2 + nz[j] * nz[j])
-        cb = -nz[j] * irn
-        sb = n2 * irn
-        a = vx[j] * ey - vy[j] * ex  # v . e1, e1 = e2 x z
-        b = vx[j] * ex + vy[j] * ey  # v . e2
-        # gamma = -atan2(vz, b), and gamma = 0 when the in-plane velocity vanishes.
-        vn2 = b * b + vz[j] * vz[j]
-        moving = vn2 > 0.0
-        ivn = 1.0 / math.sqrt(vn2 if moving else 1.0)
-        vn = vn2 * ivn
-        cg = b * ivn if moving else 1.0
-        sg = -vz[j] * ivn if moving else 0.0
-        c2 = cb * cb - sb * sb
-        s2 = 2.0 * sb * cb
+        nx, ny, nz = buf[0, j], buf[1, j], buf[2, j]
+        hx, hy = buf[3, j], buf[4, j]
+        wx, wy, wz = buf[5, j], buf[6, j], buf[7, j]
+        h2 = _fma(hx, hx, hy * hy)
+        s2 = _fma(wx, wx, _fma(wy, wy, wz * wz))
+        big_a = math.sqrt(h2)  # |h|
+        t = math.sqrt(s2 * h2)  # |w| |h|
+        p = _fma(wx, hy, -(wy * hx))  # (w . e1) |h|, e1 = e2 x z
+        q = _fma(wx, hx, wy * hy)  # (w . e2) |h|
+        r = math.sqrt(_fma(q, q, wz * wz * h2))  # |w| |h| |v23|
+        moving = r > _VN_MIN * t
+        rg = r if moving else t
+        x = 1.0 / (t * big_a * rg)  # the one division of the frame: 1/t, 1/|h|, 1/rg below
+        inv_t = big_a * rg * x
+        inv_a = t * rg * x
+        inv_r = t * big_a * x
+        ex = hx * inv_a
+        ey = hy * inv_a
+        a = p * inv_t  # v^ . e1
+        vn = r * inv_t  # |v23|
+        cg = q * inv_r if moving else 1.0  # gamma = -atan2(v^.z, v^.e2)
+        sg = -wz * big_a * inv_r if moving else 0.0
+        # beta = atan2(nz, n2) + pi/2: cos 2 beta = (nz^2 - n2^2) / rho, sin 2 beta = -2 nz n2 / rho
+        # with rho = n2^2 + nz^2 = 1 - (n . e1)^2 within 2e-3 of 1 (DESIGN 2.2 frame).
+        n2 = _fma(nx, ex, ny * ey)
+        eps = 1.0 - _fma(n2, n2, nz * nz)
+        inv_rho = 1.0
+        for _ in range(_INV_TERMS - 1):
+            inv_rho = _fma(inv_rho, eps, 1.0)
+        c2 = (nz - n2) * (nz + n2) * inv_rho
+        s2b = -2.0 * nz * n2 * inv_rho
         p1 = c2 * cg
-        p2 = s2 * sg
+        p2 = s2b * sg
         p3 = c2 * sg
-        p4 = s2 * cg
-        az_[j] = (
-            ((co[0] + co[1] * c2) + (co[2] * s2 + co[3] * cg))
-            + ((co[4] * sg + co[5] * p1) + (co[6] * p2 + co[7] * p3))
-            + co[8] * p4
-        )
-        ax_[j] = (
-            ((co[9] + co[10] * c2) + (co[11] * s2 + co[12] * cg))
-            + ((co[13] * sg + co[14] * p1) + (co[15] * p2 + co[16] * p3))
-            + co[17] * p4
-        )
-        ex_[j] = ex
-        ey_[j] = ey
-        a_[j] = a
-        # tanh(x) = 1 - 2 / (exp(2x) + 1); atanh(u) = log((1 + u) / (1 - u)) / 2.
-        t1[j] = 2.0 * (_F1_SLOPE * abs(a) - _F1_SHIFT)
-        u = _F23_SLOPE * vn - _F23_SHIFT
-        t2[j] = (1.0 + u) / (1.0 - u)
-
-
-@numba.njit(**_JIT)
-def _transcendental(k, t1, t2):
-    """Stage 3: exp and log in place (independent iterations)."""
-    for j in range(k):
-        t1[j] = math.exp(t1[j])
-    for j in range(k):
-        t2[j] = math.log(t2[j])
-
-
-@numba.njit(**_JIT)
-def _combine(k, da, ay, zeta, ex_, ey_, a_, t1, t2, az_, ax_, fx, fy, fz):
-    """Stage 4: F = zeta d dA [-f1 ay sign(v.e1) e1 - f23 ax e2 + f23 az z] (DESIGN 2.8)."""
-    for j in range(k):
-        s = zeta * da[j]
-        g23 = s * _C23 * (0.5 * t2[j] + _ATANH_F23_SHIFT)
-        a = a_[j]
+        p4 = s2b * cg
+        az = co[0]
+        ax = co[9]
+        for c, term in enumerate((c2, s2b, cg, sg, p1, p2, p3, p4)):  # unrolled by numba
+            az = _fma(co[1 + c], term, az)
+            ax = _fma(co[10 + c], term, ax)
+        # f1 = C1 (tanh(slope |a| - shift) + tanh(shift)), tanh(z) = 1 - 2 / (exp(2z) + 1).
+        e1 = _exp_f1(_fma(2.0 * _F1_SLOPE, abs(a), -2.0 * _F1_SHIFT)) + 1.0
+        # f23 = C23 (atanh(u) + atanh(shift)), atanh(u) = log(num / den) / 2.
+        num = _fma(_F23_SLOPE, vn, 1.0 - _F23_SHIFT)  # 1 + u
+        den = _fma(-_F23_SLOPE, vn, 1.0 + _F23_SHIFT)  # 1 - u
+        lg = 0.0
+        for thr, below, fac, l2 in _LOG_STEPS:
+            hit = num < thr * den if below else num > thr * den
+            num = num * fac if hit else num
+            lg = lg - l2 if hit else lg
+        y = 1.0 / ((num + den) * e1)  # the second division: 1 / (num + den) and 1 / e1
+        sr = (num - den) * e1 * y
+        s_sq = sr * sr
+        ser = 1.0 / (2 * _LOG_TERMS - 1)
+        for i in range(_LOG_TERMS - 2, -1, -1):
+            ser = _fma(ser, s_sq, 1.0 / (2 * i + 1))
+        log_r = _fma(lg, _LN2, 2.0 * sr * ser)
+        f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANH_F1_SHIFT)
+        # DESIGN 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+        s = zeta * buf[8, j]
+        g23 = s * _C23 * _fma(0.5, log_r, _ATANH_F23_SHIFT)
         sgn = 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
-        f1 = _C1 * ((1.0 - 2.0 / (t1[j] + 1.0)) + _TANH_F1_SHIFT)
         g1 = -s * f1 * ay * sgn
-        gx = -g23 * ax_[j]
-        ex = ex_[j]
-        ey = ey_[j]
-        fx[j] = g1 * ey + gx * ex
-        fy[j] = -g1 * ex + gx * ey
-        fz[j] = g23 * az_[j]
+        gx = -g23 * ax
+        buf[9, j] = _fma(g1, ey, gx * ex)
+        buf[10, j] = _fma(-g1, ex, gx * ey)
+        buf[11, j] = g23 * az
 
 
 @numba.njit(**_JIT)
 def _scratch():
-    return np.empty((17, CHUNK)), np.empty(CHUNK, np.int64)
+    """Per-chunk scratch: rows 0-11 for _evaluate, 12-14 for body_wrench's element positions."""
+    return np.empty((15, CHUNK)), np.empty(CHUNK, np.int64)
 
 
 @numba.njit(inline="always", **_JIT)
-def _gather(buf, k, nx, ny, nz, wx, wy, wz, depth_area):
-    """Normalise v and, if the element leads, append it to the chunk; returns the new count."""
+def _gather(buf, idx, k, i, nx, ny, nz, wx, wy, wz, depth, area, inside):
+    """Write element i at slot k of the chunk; returns k + 1 if it acts (submerged, inside the
+    region, leading: n . w > 0), else k, so the slot is reused (branch-free compaction).
+
+    Scalar but cheap: the velocity is only rescaled when |w|^2 leaves [_W2_MIN, _W2_MAX], and the
+    frame direction h is normalised here only for nearly horizontal plates (rare).
+    """
     s2 = wx * wx + wy * wy + wz * wz
-    if 1e-280 < s2 < 1e280:
-        inv = 1.0 / math.sqrt(s2)
-    else:  # rescale so the squares neither underflow nor overflow
+    if not (_W2_MIN <= s2 <= _W2_MAX):  # rescale so the squares neither underflow nor overflow
         m = max(abs(wx), abs(wy), abs(wz))
+        if m > 0.0:
+            wx, wy, wz = wx / m, wy / m, wz / m
+    dot = nx * wx + ny * wy + nz * wz  # <= 0: trailing, moving in the plate's plane, or at rest
+    if abs(nz) >= HORIZONTAL_PLATE_NZ:
+        # Frame (DESIGN 2.2) from the horizontal velocity, or world x if there is none.
+        m = max(abs(wx), abs(wy))
         if m == 0.0:
-            return k
-        wx, wy, wz = wx / m, wy / m, wz / m
-        inv = 1.0 / math.sqrt(wx * wx + wy * wy + wz * wz)
-    wx, wy, wz = wx * inv, wy * inv, wz * inv
-    if nx * wx + ny * wy + nz * wz <= 0.0:  # trailing (or moving in the plate's plane)
-        return k
+            hx, hy = 1.0, 0.0
+        else:
+            hx, hy = wx / m, wy / m
+            inv = 1.0 / math.sqrt(hx * hx + hy * hy)
+            hx, hy = hx * inv, hy * inv
+    else:
+        hx, hy = nx, ny
     buf[0, k] = nx
     buf[1, k] = ny
     buf[2, k] = nz
-    buf[3, k] = wx
-    buf[4, k] = wy
-    buf[5, k] = wz
-    buf[6, k] = depth_area
-    return k + 1
-
-
-@numba.njit(inline="always", **_JIT)
-def _evaluate(buf, k, co, ay, zeta):
-    """Stages 2-4 on the k gathered elements; forces land in buf[14:17, :k]."""
-    _angles(
-        k, buf[0], buf[1], buf[2], buf[3], buf[4], buf[5], co,
-        buf[7], buf[8], buf[9], buf[10], buf[11], buf[12], buf[13],
-    )  # fmt: skip
-    _transcendental(k, buf[10], buf[11])
-    _combine(
-        k, buf[6], ay, zeta, buf[7], buf[8], buf[9], buf[10], buf[11], buf[12], buf[13],
-        buf[14], buf[15], buf[16],
-    )  # fmt: skip
+    buf[3, k] = hx
+    buf[4, k] = hy
+    buf[5, k] = wx
+    buf[6, k] = wy
+    buf[7, k] = wz
+    buf[8, k] = depth * area
+    idx[k] = i
+    return k + ((depth > 0.0) & inside & (dot > 0.0))
 
 
 @numba.njit(**_JIT)
@@ -203,28 +271,24 @@ def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
     buf, idx = _scratch()
     count = 0
     for c0 in range(0, n, CHUNK):
+        c1 = min(n, c0 + CHUNK)
         k = 0
-        for i in range(c0, min(n, c0 + CHUNK)):
+        for i in range(c0, c1):
             out[i, 0] = 0.0
             out[i, 1] = 0.0
             out[i, 2] = 0.0
-            depth = surface_z - pos[i, 2]
-            if depth <= 0.0:
-                continue
-            k_new = _gather(
-                buf, k, n_hat[i, 0], n_hat[i, 1], n_hat[i, 2], vel[i, 0], vel[i, 1], vel[i, 2],
-                depth * area[i],
+        for i in range(c0, c1):
+            k = _gather(
+                buf, idx, k, i, n_hat[i, 0], n_hat[i, 1], n_hat[i, 2], vel[i, 0], vel[i, 1],
+                vel[i, 2], surface_z - pos[i, 2], area[i], True,
             )  # fmt: skip
-            if k_new > k:
-                idx[k] = i
-                k = k_new
         _evaluate(buf, k, co, ay, zeta)
         for j in range(k):
             i = idx[j]
-            out[i, 0] = buf[14, j]
-            out[i, 1] = buf[15, j]
-            out[i, 2] = buf[16, j]
-            if buf[14, j] != 0.0 or buf[15, j] != 0.0 or buf[16, j] != 0.0:
+            out[i, 0] = buf[9, j]
+            out[i, 1] = buf[10, j]
+            out[i, 2] = buf[11, j]
+            if buf[9, j] != 0.0 or buf[10, j] != 0.0 or buf[11, j] != 0.0:
                 count += 1
     return count
 
@@ -244,9 +308,6 @@ def body_wrench(
     written for elements start..stop (zero where nothing acts).
     """
     buf, idx = _scratch()
-    px_ = np.empty(CHUNK)
-    py_ = np.empty(CHUNK)
-    pz_ = np.empty(CHUNK)
     r = rot
     count = 0
     for c0 in range(start, stop, CHUNK):
@@ -255,6 +316,8 @@ def body_wrench(
             elem_force[i, 0] = 0.0
             elem_force[i, 1] = 0.0
             elem_force[i, 2] = 0.0
+            # Dry elements leave here (a well-predicted branch: neighbouring triangles of a mesh
+            # are dry together), after three multiply-adds.
             cx, cy, cz = cent[i, 0], cent[i, 1], cent[i, 2]
             pz = r[2, 0] * cx + r[2, 1] * cy + r[2, 2] * cz + pos[2]
             depth = surface_z - pz
@@ -268,23 +331,22 @@ def body_wrench(
             ):  # fmt: skip
                 continue
             mx, my, mz = norm[i, 0], norm[i, 1], norm[i, 2]
-            nx = r[0, 0] * mx + r[0, 1] * my + r[0, 2] * mz
-            ny = r[1, 0] * mx + r[1, 1] * my + r[1, 2] * mz
-            nz = r[2, 0] * mx + r[2, 1] * my + r[2, 2] * mz
             dx, dy, dz = px - p_ref[0], py - p_ref[1], pz - p_ref[2]
-            vx = v_ref[0] + omega[1] * dz - omega[2] * dy
-            vy = v_ref[1] + omega[2] * dx - omega[0] * dz
-            vz = v_ref[2] + omega[0] * dy - omega[1] * dx
-            k_new = _gather(buf, k, nx, ny, nz, vx, vy, vz, depth * area[i])
-            if k_new > k:
-                idx[k] = i
-                px_[k] = px
-                py_[k] = py
-                pz_[k] = pz
-                k = k_new
+            j = k
+            buf[12, j] = px
+            buf[13, j] = py
+            buf[14, j] = pz
+            k = _gather(
+                buf, idx, k, i, r[0, 0] * mx + r[0, 1] * my + r[0, 2] * mz,
+                r[1, 0] * mx + r[1, 1] * my + r[1, 2] * mz,
+                r[2, 0] * mx + r[2, 1] * my + r[2, 2] * mz,
+                v_ref[0] + omega[1] * dz - omega[2] * dy,
+                v_ref[1] + omega[2] * dx - omega[0] * dz,
+                v_ref[2] + omega[0] * dy - omega[1] * dx, depth, area[i], True,
+            )  # fmt: skip
         _evaluate(buf, k, co, ay, zeta)
         for j in range(k):
-            fx, fy, fz = buf[14, j], buf[15, j], buf[16, j]
+            fx, fy, fz = buf[9, j], buf[10, j], buf[11, j]
             if fx == 0.0 and fy == 0.0 and fz == 0.0:
                 continue
             count += 1
@@ -292,7 +354,7 @@ def body_wrench(
             elem_force[i, 0] = fx
             elem_force[i, 1] = fy
             elem_force[i, 2] = fz
-            ax_, ay_, az_ = px_[j] - com[0], py_[j] - com[1], pz_[j] - com[2]
+            ax_, ay_, az_ = buf[12, j] - com[0], buf[13, j] - com[1], buf[14, j] - com[2]
             wrench[0] += fx
             wrench[1] += fy
             wrench[2] += fz

@@ -77,3 +77,61 @@ def test_body_kernel_equals_field_numpy_path():
     # The sphere 20 cm up is culled by its bounding sphere: its triangles are never evaluated.
     sizes = np.diff(fld.bodies[0].segments)
     assert fld.stats["evaluated"] == sizes[0] + sizes[1]
+
+
+def _forces(material, pos, n_hat, area, vel):
+    out = np.full(pos.shape, np.nan)
+    _kernel.forces(
+        pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
+        material.zeta, 0.0, out,
+    )  # fmt: skip
+    return out
+
+
+def test_scaling_functions_over_their_whole_range():
+    """The kernel's exp and log polynomials (f1 and f23 on bounded arguments) against NumPy's
+    tanh/arctanh, on a dense grid of velocity directions at a vertical plate (normal +x) that
+    includes the ends: |v.e1| = 0 and 1 (sideways), |v23| = 0 and 1, and every octave of the
+    log's argument."""
+    th = np.linspace(0.0, 0.5 * np.pi, 401)[:-1]  # angle from the normal, leading only
+    ph = np.linspace(0.0, 2.0 * np.pi, 97)
+    th, ph = (a.ravel() for a in np.meshgrid(th, ph))
+    vel = np.stack([np.cos(th), np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph)], axis=1)
+    n = len(vel)
+    pos = np.tile([0.0, 0.0, -0.1], (n, 1))
+    n_hat = np.tile([1.0, 0.0, 0.0], (n, 1))
+    area = np.full(n, 1e-4)
+    for material in (GLASS, POPPY):
+        out = _forces(material, pos, n_hat, area, vel)
+        ref = numpy_forces(pos, n_hat, area, vel, material, 0.0)
+        np.testing.assert_allclose(out, ref, rtol=ROUNDOFF, atol=ROUNDOFF * np.abs(ref).max())
+
+
+def test_result_does_not_depend_on_the_slot_in_a_chunk():
+    """An element's force is bit-identical wherever it lands in a chunk (the vectorised body of
+    the loop or its scalar remainder), so splitting or reordering work never changes results."""
+    rng = np.random.default_rng(11)
+    pos, n_hat, area, vel = inputs(rng, 300)
+    base = _forces(GLASS, pos, n_hat, area, vel)
+    for shift in (1, 2, 3, 5, 250):
+        perm = np.roll(np.arange(300), shift)
+        out = _forces(GLASS, pos[perm], n_hat[perm], area[perm], vel[perm])
+        np.testing.assert_array_equal(out, base[perm])
+    for n in (1, 2, 3, 9):
+        sub = _forces(GLASS, pos[:n], n_hat[:n], area[:n], vel[:n])
+        np.testing.assert_array_equal(sub, base[:n])
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-31, 1e-9, 1.0, 1e30, 1e31, 1e300])
+def test_speed_scale_never_changes_the_force(scale):
+    """RFT forces depend on the direction of motion only: the kernel's range guard (velocities
+    rescaled outside |w|^2 in [1e-60, 1e60]) and its products of speed-scaled factors hold over
+    the whole double range, nearly horizontal plates (frame from the velocity) included."""
+    rng = np.random.default_rng(5)
+    pos, n_hat, area, vel = inputs(rng, 400)
+    vel = _unit_rows(vel)[0]  # rows 130-140 stay at rest
+    n_hat[200:260] = _unit_rows(n_hat[200:260] * [1e-3, 1e-3, 1.0] + [0, 0, 1e-9])[0]
+    ref = _forces(GLASS, pos, n_hat, area, vel)
+    out = _forces(GLASS, pos, n_hat, area, vel * scale)
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, ref, rtol=ROUNDOFF, atol=ROUNDOFF * np.abs(ref).max())
