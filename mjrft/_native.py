@@ -227,9 +227,18 @@ def _treat_body(
         diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
         diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
         if dt * diss < n2:
-            for c in range(6):
-                w[c] = rw[c]
-            return 2
+            # Power of R over the step on the mean of the start and end twists (lowspeed.treat).
+            om_end = om_free + dt * (ii @ rw[3:])
+            power = 0.0
+            for c in range(3):
+                power += rw[c] * (v[c] + v_free[c] + dt * rw[c] / mass)
+                power += rw[3 + c] * (om[c] + om_end[c])
+            if power <= 0.0:
+                for c in range(6):
+                    w[c] = rw[c]
+                return 2
+            if sq + dxi > 0.0:  # the pure model keeps the motion's sense over this step
+                return 0
     iomf = iw @ om_free
     for c in range(3):
         w[c] = -mass * v_free[c] / dt

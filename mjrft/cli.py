@@ -325,7 +325,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_float,
         default=None,
         metavar="R",
-        help="the treatment's reach (default: the model's mjrft:stick_reach, else 1)",
+        help="the treatment's reach (default: the model's mjrft:stick_reach, else 4)",
     )
     r.add_argument(
         "--record-every",

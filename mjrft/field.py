@@ -226,7 +226,8 @@ class GranularField:
         (e.g. 0.01); the count comes from ``mjrft.geometry.triangles_for_tolerance``.
       low_speed: "stick" (default) or "off": the low-speed stick/slip treatment of free bodies
         (``mjrft.lowspeed``); overrides MJCF ``mjrft:low_speed``.
-      stick_reach: the treatment's reach (default 1); overrides MJCF ``mjrft:stick_reach``.
+      stick_reach: the treatment's reach (default 4, lowspeed.DEFAULT_REACH); overrides MJCF
+        ``mjrft:stick_reach``.
     Raises:
       mjrft.scene.SceneError (a ValueError) naming the geom or field at fault.
     """

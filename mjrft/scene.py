@@ -13,7 +13,7 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick (default) or off
-      <numeric name="mjrft:stick_reach" data="1"/>       its reach (mjrft.lowspeed), default 1
+      <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.lowspeed), default 4
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
         <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
                                                          or a tolerance in (0, 1), e.g. 0.02
@@ -33,7 +33,7 @@ import mujoco
 import numpy as np
 
 from mjrft import geometry
-from mjrft.lowspeed import MODES, LowSpeed
+from mjrft.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 from mjrft.material import PRESETS, FourierCoefficients, Material
 
 PREFIX = "mjrft:"
@@ -269,7 +269,7 @@ def _low_speed(model, custom, mode: str | None, reach: float | None) -> LowSpeed
             )
     if reach is None:
         r = _numeric_field(model, custom, "stick_reach", (1,), "one number in (0, 1000]")
-        reach = 1.0 if r is None else float(r[0])
+        reach = DEFAULT_REACH if r is None else float(r[0])
         if r is not None and not 0.0 < reach <= 1e3:
             raise SceneError(
                 f"<numeric name='{PREFIX}stick_reach'> = {reach}; expected a number in (0, 1000]"
