@@ -63,8 +63,9 @@ DEFAULT_REACH = 4.0
 #: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
 #: acted on, or whose motion would reverse within this many steps of the change predicted at
 #: the step's start; other bodies feel the pure model in every stage (mjrft._native.rk4_hold).
-#: Measured at reach 1 (benchmarks/RESULTS.md): 2, 4, 8 settle 38, 46, 51 of 60 slowly lowered
-#: RK4 cells (all drops settle), but with 2 and 8 a thrown spinning body gains energy in a step.
+#: Measured at reach 1 with the earlier slip rule (benchmarks/RESULTS.md): 2, 4, 8 settle 38,
+#: 46, 51 of 60 slowly lowered RK4 cells (all drops settle), but with 2 and 8 a thrown spinning
+#: body gained energy in a step.
 RK4_HOLD_STEPS = 4.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
 #: force of the free direction.
