@@ -418,9 +418,9 @@ def step(field_addr, data_addr):
     return OK
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", nogil=True)
 def batch_wrench(
-    field_addr, xpos, xmat, xipos, ximat, cvel, subtree_com, geom_xpos, user_xfrc, out
+    field_addr, xpos, xmat, xipos, ximat, cvel, subtree_com, geom_xpos, user_xfrc, out, counts
 ):  # fmt: skip
     """RFT wrenches of many simulations of one model in one call (mjrft.batch).
 
@@ -428,13 +428,16 @@ def batch_wrench(
     cvel (S, nbody, 6), subtree_com (S, nbody, 3), geom_xpos (S, ngeom, 3): bound MjData
     fields, world frame. user_xfrc (S, nbody, 6): the user's applied wrenches (the low-speed
     treatment counts them). out (S, nbody, 6): filled with each body's force and torque at its
-    CoM. Returns OK, or -1 - s for the first simulation s whose state is not finite. Copies run
-    one after the other: numba threads here compete with MuJoCo's batch threads (measured 3-20x
-    slower on 2 cores).
+    CoM. counts (N_STATS,) int64: the field's statistics of these passes are added here, not to
+    the field's own (mjrft.batch sums them), so that several threads can run disjoint sets of
+    copies at once (the GIL is released). Returns OK, or -1 - s for the first simulation s whose
+    state is not finite. Copies run one after the other within a call (numba threads here
+    competed with MuJoCo's batch threads: 3-20x slower on 2 cores).
     """
     f = numba.carray(u64_ptr(field_addr), FIELD_WORDS)
     n_el, n_geom, n_bt = f[F_NELEM], f[F_NGEOM], f[F_NBODY_TAGGED]
-    cent, norm, area, gint, grb, bodies, par, region, co, stats = _statics(f)
+    cent, norm, area, gint, grb, bodies, par, region, co, _ = _statics(f)
+    stats = counts
     surface_z, zeta, ay = par[P_SURFACE], par[P_ZETA], par[P_AY]
     use_region = par[P_USE_REGION] != 0.0
     n_sim = xpos.shape[0]

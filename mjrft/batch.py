@@ -6,13 +6,19 @@ through ``xfrc_applied`` between steps. Each substep: one native call computes t
 every copy from the bound position- and velocity-stage fields (``mjrft._native.batch_wrench``),
 ``xfrc_applied = user + RFT`` is written, and the batch steps with ``stage=mjSTAGE_VEL``, which
 leaves those fields current at the new state (a persistent batch then continues from them, so
-this costs no extra forward pass).
+this costs no extra forward pass). The RFT pass runs on ``nthread`` Python threads over disjoint
+sets of copies (the native call releases the GIL), between MuJoCo's batch steps, so the two
+never compete for cores.
 This is the explicit path of ``mjrft.field`` for every copy (the force is evaluated at the state
 at the start of the substep and held over it), and gives the same trajectories as that path on
 single MjData (tests/test_batch.py).
 """
 
 from __future__ import annotations
+
+import itertools
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
 import numpy as np
@@ -21,6 +27,9 @@ from mujoco.batch import Batch
 from mjrft import _native
 from mjrft.field import GranularField
 
+#: Fewest copies per RFT thread (below it, fewer threads).
+_MIN_COPIES_PER_THREAD = 4
+
 
 class BatchedField:
     """A GranularField applied to ``nsim`` simulations of its model on ``nthread`` threads.
@@ -28,7 +37,7 @@ class BatchedField:
     Args:
       field: the field (its model is the batch's model; Fourier-form materials only).
       nsim: number of simulations (copies); they may differ in state and controls.
-      nthread: threads for MuJoCo's batch (default: all cores).
+      nthread: threads for MuJoCo's batch and for the RFT pass (default: all cores).
     Attributes:
       batch: the underlying ``mujoco.batch.Batch``: set initial states and controls through it
         (``batch.qpos``, ``batch.ctrl``, ``batch.reset(key=...)``).
@@ -53,8 +62,40 @@ class BatchedField:
         self.batch = Batch(self.model, nsim=nsim, persistent=True, **kw)
         self._arrays = {name: self.batch.bind(name) for name in self._DERIVED}
         self._xfrc = self.batch.bind("xfrc_applied")
-        self.user_xfrc = np.zeros_like(self._xfrc)
-        self.wrench = np.zeros_like(self._xfrc)
+        self._user = np.zeros_like(self._xfrc)
+        self._wrench = np.zeros_like(self._xfrc)
+        # RFT threads: at least _MIN_COPIES_PER_THREAD copies each (a hand-off costs ~20 us).
+        n_rft = max(1, min(nthread or os.cpu_count() or 1, nsim // _MIN_COPIES_PER_THREAD))
+        bounds = np.linspace(0, nsim, n_rft + 1).round().astype(int)
+        # One thread adds to the field's statistics directly; several add to their own rows,
+        # summed into the field's after each pass.
+        self._counts = np.zeros((n_rft, _native.N_STATS), dtype=np.int64)
+        arr, self._jobs = self._arrays, []
+        for k, (lo, hi) in enumerate(itertools.pairwise(bounds.tolist())):
+            sl = slice(lo, hi)
+            counts = self.field._stats if n_rft == 1 else self._counts[k]
+            self._jobs.append(
+                (self.field._table.ctypes.data, arr["xpos"][sl], arr["xmat"][sl],
+                 arr["xipos"][sl], arr["ximat"][sl], arr["cvel"][sl], arr["subtree_com"][sl],
+                 arr["geom_xpos"][sl], self._user[sl], self._wrench[sl], counts)
+            )  # fmt: skip
+        self._starts = bounds[:-1].tolist()
+        self._pool = ThreadPoolExecutor(n_rft - 1) if n_rft > 1 else None
+
+    @property
+    def user_xfrc(self) -> np.ndarray:
+        """(nsim, nbody, 6) your applied wrenches [N, N m], world frame, at each body's CoM;
+        write in place or assign (assignment copies into the same array)."""
+        return self._user
+
+    @user_xfrc.setter
+    def user_xfrc(self, value: np.ndarray) -> None:
+        self._user[...] = value
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """(nsim, nbody, 6) RFT wrenches of the last substep [N, N m] (read only: rewritten)."""
+        return self._wrench
 
     @property
     def nsim(self) -> int:
@@ -77,20 +118,40 @@ class BatchedField:
         """
         vel = mujoco.mjtStage.mjSTAGE_VEL.value
         for _ in range(nstep):
-            a = self._arrays
-            status = _native.batch_wrench(
-                self.field._table.ctypes.data, a["xpos"], a["xmat"], a["xipos"], a["ximat"],
-                a["cvel"], a["subtree_com"], a["geom_xpos"], self.user_xfrc, self.wrench,
-            )  # fmt: skip
-            if status != _native.OK:
-                sim = -1 - status
+            if self._pool is None:
+                status = [self._rft(0)]
+            else:  # the last slice on this thread, the others on the pool
+                self._counts[:] = 0
+                jobs = [self._pool.submit(self._rft, k) for k in range(len(self._jobs) - 1)]
+                status = [self._rft(len(self._jobs) - 1)]
+                status = [j.result() for j in jobs] + status
+                self.field._stats += self._counts.sum(axis=0)
+            bad = [st for st in status if st is not None]
+            if bad:
+                sim = min(bad)
                 raise FloatingPointError(
                     f"simulation {sim} of the batch has a non-finite intruding-body state at "
                     f"time {float(self.batch.bind('time')[sim]):.6g} s; the granular field "
                     "refuses to feed NaN forward"
                 )
-            np.add(self.user_xfrc, self.wrench, out=self._xfrc)
+            np.add(self._user, self._wrench, out=self._xfrc)
             self.batch.step(stage=vel)
+
+    def _rft(self, k: int) -> int | None:
+        """RFT wrenches of the copies of job k; the first bad copy's index or None."""
+        status = _native.batch_wrench(*self._jobs[k])
+        return None if status == _native.OK else self._starts[k] + (-1 - status)
+
+    def close(self) -> None:
+        """Stop the RFT threads (also done when the object is garbage collected)."""
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
+
+    def __del__(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.shutdown(wait=False)
 
 
 def single_step_reference(

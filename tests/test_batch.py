@@ -65,3 +65,34 @@ def test_batch_refuses_non_finite_state_naming_the_copy():
     bf.forward()
     with pytest.raises(FloatingPointError, match="simulation 1"):
         bf.step()
+
+
+def test_threaded_rft_pass_equals_one_thread_and_counts_every_copy():
+    """With enough copies the RFT pass runs on several threads over disjoint copies: the states,
+    the field's statistics and the copy named in an error are those of a single thread."""
+    m = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
+    n, crank = 9, m.actuator("crank").id
+    runs = []
+    for nthread in (1, 2):
+        fld = GranularField(m, n_triangles=200)
+        bf = BatchedField(fld, nsim=n, nthread=nthread)
+        assert len(bf._jobs) == nthread  # 9 copies: one thread, or two of 4 and 5 copies
+        bf.reset(keyframe=np.zeros(n, dtype=int))
+        bf.batch.bind("ctrl")[:, crank] *= np.linspace(0.6, 1.4, n)
+        bf.user_xfrc = np.zeros((n, m.nbody, 6))  # assignment copies into the bound array
+        bf.user_xfrc[7, m.body("ellipsoid").id, 2] = -0.05
+        bf.step(1500)
+        runs.append((np.array(bf.batch.bind("qpos")), np.array(bf.wrench), fld.stats))
+        bf.close()
+    (q1, w1, s1), (q2, w2, s2) = runs
+    assert np.any(w1 != 0)
+    np.testing.assert_array_equal(q2, q1)
+    np.testing.assert_array_equal(w2, w1)
+    assert s2 == s1 and s1["calls"] == 1500 * n
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    bf = BatchedField(GranularField(m, n_triangles=200), nsim=n, nthread=2)
+    bf.reset(keyframe=np.zeros(n, dtype=int))
+    bf.batch.bind("qvel")[6] = np.nan  # a copy of the second thread's share
+    bf.forward()
+    with pytest.raises(FloatingPointError, match="simulation 6"):
+        bf.step()
