@@ -55,10 +55,11 @@ import numpy as np
 MODES = ("stick", "off")
 #: Default ``reach``. Measured (benchmarks/RESULTS.md, "RK4 and the reach"; settle 1.5 s, hold
 #: 2 s, 60 cells per integrator and release): with slip limited to forces that do no work over
-#: the step, reaches 1, 4, 8 all settle every dropped body and every Euler/implicitfast lowered
-#: one, and settle 49, 56, 58 of 60 slowly lowered RK4 bodies; no thrown body gains energy at
-#: any of them. 4 rather than 8: the treatment's speed scale (a body counts as slow while its
-#: motion would reverse within ``reach`` steps) stays small, so the pure model keeps more motion.
+#: the step, reaches 1, 4, 8 settle every dropped RK4 body and 49, 56, 58 of 60 slowly lowered
+#: ones; 4 and 8 also every Euler/implicitfast body; no thrown body gains energy at any of them
+#: (the 10 s map at reach 4: benchmarks/RESULTS.md, "Stability map"). 4 rather than 8: the
+#: treatment's speed scale (a body counts as slow while its motion would reverse within
+#: ``reach`` steps) stays small, so the pure model keeps more motion.
 DEFAULT_REACH = 4.0
 #: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
 #: acted on, or whose motion would reverse within this many steps of the change predicted at
