@@ -308,7 +308,19 @@ def body_wrench(
     written for elements start..stop (zero where nothing acts).
     """
     buf, idx = _scratch()
-    r = rot
+    # Flat views and scalar invariants: constant-stride loads and no reloads in the loop below
+    # (measured: 2D indexing with runtime strides cost ~1.7x here).
+    cf = np.ascontiguousarray(cent).reshape(-1)
+    nf = np.ascontiguousarray(norm).reshape(-1)
+    r00, r01, r02 = rot[0, 0], rot[0, 1], rot[0, 2]
+    r10, r11, r12 = rot[1, 0], rot[1, 1], rot[1, 2]
+    r20, r21, r22 = rot[2, 0], rot[2, 1], rot[2, 2]
+    ox, oy, oz = pos[0], pos[1], pos[2]
+    wx, wy, wz = omega[0], omega[1], omega[2]
+    ux, uy, uz = v_ref[0], v_ref[1], v_ref[2]
+    qx, qy, qz = p_ref[0], p_ref[1], p_ref[2]
+    lo_x, lo_y, lo_z = region[0, 0], region[0, 1], region[0, 2]
+    hi_x, hi_y, hi_z = region[1, 0], region[1, 1], region[1, 2]
     count = 0
     for c0 in range(start, stop, CHUNK):
         k = 0
@@ -318,31 +330,26 @@ def body_wrench(
             elem_force[i, 2] = 0.0
             # Dry elements leave here (a well-predicted branch: neighbouring triangles of a mesh
             # are dry together), after three multiply-adds.
-            cx, cy, cz = cent[i, 0], cent[i, 1], cent[i, 2]
-            pz = r[2, 0] * cx + r[2, 1] * cy + r[2, 2] * cz + pos[2]
+            cx, cy, cz = cf[3 * i], cf[3 * i + 1], cf[3 * i + 2]
+            pz = r20 * cx + r21 * cy + r22 * cz + oz
             depth = surface_z - pz
             if depth <= 0.0:
                 continue
-            px = r[0, 0] * cx + r[0, 1] * cy + r[0, 2] * cz + pos[0]
-            py = r[1, 0] * cx + r[1, 1] * cy + r[1, 2] * cz + pos[1]
+            px = r00 * cx + r01 * cy + r02 * cz + ox
+            py = r10 * cx + r11 * cy + r12 * cz + oy
             if use_region and (
-                px < region[0, 0] or py < region[0, 1] or pz < region[0, 2]
-                or px > region[1, 0] or py > region[1, 1] or pz > region[1, 2]
-            ):  # fmt: skip
+                px < lo_x or py < lo_y or pz < lo_z or px > hi_x or py > hi_y or pz > hi_z
+            ):
                 continue
-            mx, my, mz = norm[i, 0], norm[i, 1], norm[i, 2]
-            dx, dy, dz = px - p_ref[0], py - p_ref[1], pz - p_ref[2]
-            j = k
-            buf[12, j] = px
-            buf[13, j] = py
-            buf[14, j] = pz
+            mx, my, mz = nf[3 * i], nf[3 * i + 1], nf[3 * i + 2]
+            dx, dy, dz = px - qx, py - qy, pz - qz
+            buf[12, k] = px
+            buf[13, k] = py
+            buf[14, k] = pz
             k = _gather(
-                buf, idx, k, i, r[0, 0] * mx + r[0, 1] * my + r[0, 2] * mz,
-                r[1, 0] * mx + r[1, 1] * my + r[1, 2] * mz,
-                r[2, 0] * mx + r[2, 1] * my + r[2, 2] * mz,
-                v_ref[0] + omega[1] * dz - omega[2] * dy,
-                v_ref[1] + omega[2] * dx - omega[0] * dz,
-                v_ref[2] + omega[0] * dy - omega[1] * dx, depth, area[i], True,
+                buf, idx, k, i, r00 * mx + r01 * my + r02 * mz, r10 * mx + r11 * my + r12 * mz,
+                r20 * mx + r21 * my + r22 * mz, ux + wy * dz - wz * dy, uy + wz * dx - wx * dz,
+                uz + wx * dy - wy * dx, depth, area[i], True,
             )  # fmt: skip
         _evaluate(buf, k, co, ay, zeta)
         for j in range(k):
