@@ -119,6 +119,7 @@ class Case:
     Attributes:
       shape: "sphere" or "ellipsoid". mass: [kg]. dt: timestep [s]. integrator: INTEGRATORS key.
       treatment: TREATMENTS key. settle_s, hold_s: durations [s] of the settle and hold phases.
+      release: RELEASES entry. ramp_times: the lowering ramp's length in units of sqrt(d_qs / g).
     """
 
     shape: str
@@ -129,6 +130,7 @@ class Case:
     settle_s: float
     hold_s: float
     release: str = "drop"
+    ramp_times: float = RAMP_TIMES
 
 
 @dataclass
@@ -336,7 +338,7 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
 
     ramp_s = 0.0
     if case.release == "lower":
-        ramp_s = RAMP_TIMES * math.sqrt(ref.d_qs / -float(model.opt.gravity[2]))
+        ramp_s = case.ramp_times * math.sqrt(ref.d_qs / -float(model.opt.gravity[2]))
         case = dataclasses.replace(case, settle_s=ramp_s + case.settle_s)
         res.settle_s = case.settle_s
     data = mujoco.MjData(model)
@@ -654,9 +656,10 @@ def build_cases(args: argparse.Namespace) -> list[Case]:
         masses, dts, shapes = MASSES_KG, TIMESTEPS_S, SHAPES
     # The baseline (treatment off) only for the drop: it never settles either way.
     return [
-        Case(shape, m, dt, integ, treat, args.settle, args.hold, release)
+        Case(shape, m, dt, integ, treat, args.settle, args.hold, release, args.ramp_times)
         for treat in TREATMENTS
         for release in RELEASES
+        if release in args.releases
         if treat != "off" or release == "drop"
         for shape in shapes
         for m in masses
@@ -673,8 +676,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--hold", type=float, default=None, help="hold phase [s] (10; quick 1)")
     p.add_argument("--triangles", type=int, default=N_TRIANGLES, help="triangles per body")
     p.add_argument(
+        "--ramp-times", type=float, default=RAMP_TIMES,
+        help=f"lowering ramp in units of sqrt(d_qs / g) (default {RAMP_TIMES:g}; 200: 10x slower)",
+    )  # fmt: skip
+    p.add_argument(
         "--integrators", nargs="+", choices=list(INTEGRATORS), default=list(INTEGRATORS),
         help="integrators to sweep (default: all)",
+    )  # fmt: skip
+    p.add_argument(
+        "--releases", nargs="+", choices=list(RELEASES), default=list(RELEASES),
+        help="releases to sweep (default: all)",
     )  # fmt: skip
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     p.add_argument(

@@ -39,18 +39,18 @@ INT_RK4 = 1
 # Columns of the (G, 5) int64 geom table.
 G_GEOM, G_BODY, G_START, G_STOP, G_ROOT = 0, 1, 2, 3, 4
 # Float64 parameters: surface_z, zeta, alpha_y, use_region, region (6), low-speed treatment on,
-# its reach, MuJoCo's gravity-disable bit, mjrft.lowspeed.RK4_HOLD_STEPS.
+# its reach, MuJoCo's gravity-disable bit, mjrft.lowspeed.RK4_HOLD_STEPS and JACOBIAN_STEP.
 P_SURFACE, P_ZETA, P_AY, P_USE_REGION, P_REGION = 0, 1, 2, 3, 4
-P_TREAT, P_REACH, P_DSBL_GRAVITY, P_RK4_HOLD = 10, 11, 12, 13
-N_PARAMS = 14
+P_TREAT, P_REACH, P_DSBL_GRAVITY, P_RK4_HOLD, P_JAC_STEP = 10, 11, 12, 13, 14
+N_PARAMS = 15
 # Words of a per-MjData entry.
 D_XPOS, D_XMAT, D_XIPOS, D_CVEL, D_SUBTREE_COM, D_GEOM_XPOS, D_XFRC = 0, 1, 2, 3, 4, 5, 6
 D_USER, D_WRITTEN, D_XIMAT = 7, 8, 9
 D_TIME, D_RK4 = 10, 11  # address of d->time; the MjData's RK4 stage record (rk4_hold)
 DATA_WORDS = 12
 # Work counters (F_STATS): passes, triangles evaluated, acting, bodies stuck, bodies slipping
-# on the free direction's force (mjrft.lowspeed).
-N_STATS = 5
+# on the free direction's force, bodies moved with the linearly implicit force (mjrft.lowspeed).
+N_STATS = 6
 # Return codes of step: 0 ok; -1 - k means tagged body k (in the field's body order) is not
 # finite.
 OK = 0
@@ -152,10 +152,147 @@ def rk4_hold(t, h, rec):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _body_twist_wrench(
+    b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, v, om, co, ay, zeta, surface_z,
+    use_region, region, scratch, out,
+):  # fmt: skip
+    """Set out (6,) to the RFT wrench on body b's geoms in play moving with the twist (v at the
+    CoM [m/s], om [rad/s]; world frame); torque about the CoM."""
+    out[:] = 0.0
+    for g in range(gint.shape[0]):
+        if gint[g, G_BODY] != b or cull_row[g]:
+            continue
+        _kernel.body_wrench(
+            cent, norm, area, gint[g, G_START], gint[g, G_STOP], xmat[b], xpos[b], om, v,
+            xipos[b], xipos[b], co, ay, zeta, surface_z, use_region, region, out, scratch,
+        )  # fmt: skip
+
+
+@numba.njit(cache=True)
+def _m_dot(a, b, mass, iw):
+    """<a, b>_M = m a_lin . b_lin + a_ang . Iw b_ang of two (6,) twists (mjrft.lowspeed)."""
+    s = mass * (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+    for r in range(3):
+        for c in range(3):
+            s += a[3 + r] * iw[r, c] * b[3 + c]
+    return s
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _solve6(a, rhs):
+    """Solve a (6, 6) x = rhs (6,) by Gaussian elimination with partial pivoting (a, rhs are
+    overwritten); returns x (non-finite if a is singular)."""
+    n = 6
+    for k in range(n):
+        p = k
+        for r in range(k + 1, n):
+            if abs(a[r, k]) > abs(a[p, k]):
+                p = r
+        if p != k:
+            for c in range(n):
+                a[k, c], a[p, c] = a[p, c], a[k, c]
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+        for r in range(k + 1, n):
+            f = a[r, k] / a[k, k]
+            for c in range(k, n):
+                a[r, c] -= f * a[k, c]
+            rhs[r] -= f * rhs[k]
+    x = np.empty(n)
+    for k in range(n - 1, -1, -1):
+        s = rhs[k]
+        for c in range(k + 1, n):
+            s -= a[k, c] * x[c]
+        x[k] = s / a[k, k]
+    return x
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _implicit(
+    b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, twist, other, mass, iw, ii, dt,
+    jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w,
+):  # fmt: skip
+    """The linearly implicit wrench (mjrft.lowspeed.implicit_wrench, compiled): replaces w (6,)
+    (the pure wrench at twist) and returns True, or leaves it and returns False. twist, other
+    (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse."""
+    mm = np.zeros((6, 6))
+    for c in range(3):
+        mm[c, c] = mass
+        for r in range(3):
+            mm[3 + r, 3 + c] = iw[r, c]
+    n = np.sqrt(_m_dot(twist, twist, mass, iw))
+    basis = np.empty((6, 6))
+    basis[0] = twist / n
+    axis = np.empty(6)
+    res = np.empty(6)
+    best = np.empty(6)
+    for k in range(1, 6):  # pivoted Gram-Schmidt (mjrft.lowspeed.transverse_basis)
+        best_n = -1.0
+        for j in range(6):
+            axis[:] = 0.0
+            axis[j] = 1.0 / np.sqrt(mm[j, j])
+            res[:] = axis
+            for q in range(k):
+                res -= _m_dot(basis[q], axis, mass, iw) * basis[q]
+            rn = np.sqrt(max(_m_dot(res, res, mass, iw), 0.0))
+            if rn > best_n:
+                best_n = rn
+                best[:] = res
+        basis[k] = best / best_n
+    h = jac_step * n
+    jac = np.zeros((6, 6))
+    probe = np.empty(6)
+    pw = np.empty(6)
+    for k in range(1, 6):
+        for c in range(6):
+            probe[c] = twist[c] + h * basis[k, c]
+        _body_twist_wrench(
+            b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, probe[:3], probe[3:], co,
+            ay, zeta, surface_z, use_region, region, scratch, pw,
+        )  # fmt: skip
+        mu = mm @ basis[k]
+        for r in range(6):
+            dw = (pw[r] - w[r]) / h
+            for c in range(6):
+                jac[r, c] += dw * mu[c]
+    end_pure = np.empty(6)
+    epa = dt * (ii @ (other[3:] + w[3:]))
+    for c in range(3):
+        end_pure[c] = twist[c] + dt * (other[c] + w[c]) / mass
+        end_pure[3 + c] = twist[3 + c] + epa[c]
+    # Linearised at cs xi, where the Jacobian is J / cs (mjrft.lowspeed.implicit_wrench).
+    cs = np.sqrt(max(_m_dot(end_pure, end_pure, mass, iw), 0.0)) / n
+    if not cs > 0.0:
+        return False
+    jac /= cs
+    a = mm - dt * jac
+    rhs = mm @ (end_pure - cs * twist)
+    d_xi = _solve6(a, rhs)
+    f = w + jac @ d_xi
+    for c in range(6):
+        if not np.isfinite(f[c]):
+            return False
+    # Guards as in the reference: the motion keeps its sense, no positive work over the step.
+    end = np.empty(6)
+    ea = dt * (ii @ (other[3:] + f[3:]))
+    for c in range(3):
+        end[c] = twist[c] + dt * (other[c] + f[c]) / mass
+        end[3 + c] = twist[3 + c] + ea[c]
+    if _m_dot(end, twist, mass, iw) <= 0.0:
+        return False
+    p_f = 0.0
+    for c in range(6):
+        p_f += f[c] * (twist[c] + end[c])
+    if p_f > 0.0:
+        return False
+    w[:] = f
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _treat_body(
     b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos, cvel,
-    subtree_com, user, mass, inertia, gvec, dt, reach, co, ay, zeta, surface_z, use_region,
-    region, scratch, w, ab,
+    subtree_com, user, mass, inertia, gvec, dt, reach, jac_step, co, ay, zeta, surface_z,
+    use_region, region, scratch, w, ab,
 ):  # fmt: skip
     """The low-speed treatment of one free body (mjrft.lowspeed.treat, compiled).
 
@@ -165,7 +302,9 @@ def _treat_body(
     cull_row (G,): 1 where the geom row is culled this pass. scratch (n_el, 3): element forces
     of the second evaluation (the field's per-element record keeps the pure model). ab (2,):
     set to |xi|^2_M and <d_xi, xi>_M (mjrft.lowspeed.keeps_sense is ab[0] + steps ab[1] > 0)
-    when the body is tested. Returns the decision (mjrft.lowspeed PURE, STICK or SLIP).
+    when the body is tested. jac_step: mjrft.lowspeed.JACOBIAN_STEP, 0 for no implicit step
+    (RK4). Returns the decision
+    (mjrft.lowspeed PURE, STICK, SLIP or IMPLICIT).
     """
     if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
         return 0
@@ -212,18 +351,30 @@ def _treat_body(
     ab[0] = sq
     ab[1] = dxi
     if sq + reach * dxi > 0.0:
-        return 0
+        # Stiff across the motion (mjrft.lowspeed.stiff): (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M.
+        wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
+        if (reach * dt) ** 2 * wn2 < sq or not jac_step > 0.0:
+            return 0
+        twist = np.empty(6)
+        other = np.empty(6)
+        for c in range(3):
+            twist[c] = v[c]
+            twist[3 + c] = om[c]
+            other[c] = mass * gvec[c] + user[c]
+            other[3 + c] = tau[c]
+        if _implicit(
+            b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, twist, other, mass, iw, ii,
+            dt, jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w,
+        ):  # fmt: skip
+            return 3
+        # Implicitly the motion would reverse within the step (or gain work): decide below.
     n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
     if n2 > 0.0:
         rw = np.zeros(6)
-        for g in range(gint.shape[0]):
-            if gint[g, G_BODY] != b or cull_row[g]:
-                continue
-            _kernel.body_wrench(
-                cent, norm, area, gint[g, G_START], gint[g, G_STOP], xmat[b], xpos[b], om_free,
-                v_free, xipos[b], xipos[b], co, ay, zeta, surface_z, use_region, region, rw,
-                scratch,
-            )  # fmt: skip
+        _body_twist_wrench(
+            b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, v_free, om_free, co, ay,
+            zeta, surface_z, use_region, region, scratch, rw,
+        )  # fmt: skip
         diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
         diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
         if dt * diss < n2:
@@ -274,6 +425,9 @@ def _treat_all(
     mass_all = numba.carray(f64_ptr(mdl[M_BODY_MASS]), nbody)
     inertia_all = numba.carray(f64_ptr(mdl[M_BODY_INERTIA]), (nbody, 3))
     dsbl = np.int32(par[P_DSBL_GRAVITY])
+    # RK4 keeps the pure model for slow moving bodies (mjrft.lowspeed.treat, ``implicit``).
+    rk4 = numba.carray(i32_ptr(mdl[M_INTEGRATOR]), 1)[0] == INT_RK4
+    jac_step = 0.0 if rk4 else par[P_JAC_STEP]
     ab = np.zeros(2)
     for k in range(bodies.shape[0]):
         b = bodies[k]
@@ -291,8 +445,8 @@ def _treat_all(
         d = _treat_body(
             b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos,
             cvel, subtree_com, user[k], mass_all[b], inertia_all[b], _gravity(mdl, b, dsbl), dt,
-            par[P_REACH], co, par[P_AY], par[P_ZETA], par[P_SURFACE], par[P_USE_REGION] != 0.0,
-            region, scratch, wrench[b], ab,
+            par[P_REACH], jac_step, co, par[P_AY], par[P_ZETA], par[P_SURFACE],
+            par[P_USE_REGION] != 0.0, region, scratch, wrench[b], ab,
         )  # fmt: skip
         decision[k] = d
         slow[k] = d != 0 or ab[0] + par[P_RK4_HOLD] * ab[1] <= 0.0
@@ -300,6 +454,8 @@ def _treat_all(
             stats[3] += 1
         elif d == 2:
             stats[4] += 1
+        elif d == 3:
+            stats[5] += 1
 
 
 @numba.njit(cache=True, error_model="numpy")

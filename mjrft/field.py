@@ -283,7 +283,9 @@ class GranularField:
             be.body: self._elem_force_all[o : o + len(be.areas)]
             for be, o in zip(self.bodies, offsets, strict=False)
         }
-        self._stats = np.zeros(5, dtype=np.int64)
+        from mjrft._native import N_STATS
+
+        self._stats = np.zeros(N_STATS, dtype=np.int64)
         #: Per body of ``body_ids``: True if the low-speed treatment can act on it (a free rigid
         #: body: free joint, no jointed or massive descendants, no other intruding body below
         #: it, not in an equality constraint).
@@ -292,7 +294,7 @@ class GranularField:
             dtype=bool,
         )
         #: Per body of ``body_ids``: the treatment's decision in the last pass (mjrft.lowspeed
-        #: PURE, STICK or SLIP).
+        #: PURE, STICK, SLIP or IMPLICIT).
         self.last_decision = np.zeros(len(self.body_ids), dtype=np.int64)
         self._rk4_slow = np.zeros(len(self.body_ids), dtype=bool)  # see _native.rk4_hold
         #: (nbody, 6) wrench of the most recent forward pass of the installed field (updated in
@@ -352,6 +354,7 @@ class GranularField:
         self._n_par[nt.P_REACH] = self.low_speed.reach
         self._n_par[nt.P_DSBL_GRAVITY] = float(mujoco.mjtDisableBit.mjDSBL_GRAVITY)
         self._n_par[nt.P_RK4_HOLD] = lowspeed.RK4_HOLD_STEPS
+        self._n_par[nt.P_JAC_STEP] = lowspeed.JACOBIAN_STEP
         self._n_model = _model_addresses(self.model)
         t[nt.F_MODEL] = self._n_model.ctypes.data
         self._n_eligible = self.stick_eligible.astype(np.int64)
@@ -366,10 +369,13 @@ class GranularField:
         """Work counters since construction: ``calls`` (evaluations of the field), ``evaluated``
         (triangles handed to the kernel: those of geoms not culled by their bounding sphere) and
         ``acting`` (triangles that felt a force: submerged and leading), and of the low-speed
-        treatment ``stuck`` and ``slipping`` (body-passes held at rest, or given the force of
-        their free direction of motion; ``mjrft.lowspeed``)."""
-        c, e, a, st, sl = (int(x) for x in self._stats)
-        return {"calls": c, "evaluated": e, "acting": a, "stuck": st, "slipping": sl}
+        treatment ``stuck``, ``slipping`` and ``implicit`` (body-passes held at rest, given the
+        force of their free direction of motion, or moved with the linearly implicit force;
+        ``mjrft.lowspeed``)."""
+        c, e, a, st, sl, im = (int(x) for x in self._stats)
+        return {
+            "calls": c, "evaluated": e, "acting": a, "stuck": st, "slipping": sl, "implicit": im,
+        }  # fmt: skip
 
     def _pack(self, body: int, items: list[tuple[Intruder, ElementSet]]) -> BodyElements:
         for intr, es in items:
@@ -577,6 +583,7 @@ class GranularField:
                 other,
                 dt,
                 self.low_speed.reach,
+                implicit=m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4,
             )
             self.last_decision[k] = dec
             self._rk4_slow[k] = dec != lowspeed.PURE or not lowspeed.keeps_sense(
@@ -586,6 +593,8 @@ class GranularField:
                 self._stats[3] += 1
             elif dec == lowspeed.SLIP:
                 self._stats[4] += 1
+            elif dec == lowspeed.IMPLICIT:
+                self._stats[5] += 1
 
     def _wrench_compiled(self, data: mujoco.MjData, out: np.ndarray) -> None:
         """The hot path: one fused kernel call per evaluated geom block (mjrft._kernel)."""

@@ -16,8 +16,16 @@ known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
 
 1. ``xi_free = xi + dt M^-1 f``: the twist at the end of the step without the medium.
 2. If the exact force W(xi) keeps the motion's sense over the step,
-   ``<xi + reach (xi_free - xi + dt M^-1 W(xi)), xi>_M > 0``, it is used unchanged: the body
-   is "fast" and feels the pure model, bit for bit.
+   ``<xi + reach (xi_free - xi + dt M^-1 W(xi)), xi>_M > 0``, the body keeps moving. If it is
+   also fast, ``reach dt |M^-1 W(xi)|_M < |xi|_M`` (the medium alone could not change its twist
+   by its whole size within ``reach`` steps), it feels the pure model, bit for bit. Otherwise
+   it is slow and moving, where RFT is stiff across the motion: W depends on the direction
+   only, so a tilt or sideways drift of size e changes W by ~|W| e / |xi|, and an explicit
+   step of such a mode overshoots and grows at the step frequency (an upright ellipsoid
+   lowered slowly rocked and tipped over; benchmarks/RESULTS.md, "Rocking"). Such a body gets
+   the wrench of one Newton step of backward Euler, ``W(xi) + J d`` (:func:`implicit_wrench`):
+   explicit along the motion (J xi = 0), implicit across it. Where that would reverse the
+   motion within the step or do more work than the pure model, step 3 decides instead.
 3. Otherwise the velocity would pass through zero inside the step. The medium's resistance to
    the free motion, R = W(xi_free), is evaluated; if it can dissipate the free motion's momentum
    within the step, ``-R . xi_free >= <xi_free, xi_free>_M / dt``, the body sticks: the wrench is
@@ -33,7 +41,8 @@ known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
 on the whole twist, so translation and rotation stick together (testing them separately was
 tried and rejected: a torque that translation causes was then applied to a stuck body and spun
 it up). ``reach`` scales the predicted velocity change and is the only knob (1: the exact
-time-stepping boundary; larger values hand more of the slow motion to step 3; default 4). The
+time-stepping boundary; larger values hand more of the slow motion to steps 2 (implicit) and 3;
+default 4). The
 treatment needs the body's own inertia and every force on it, so it applies to free rigid bodies
 (a free joint, no jointed or massive descendants); bodies in mechanisms feel the pure model,
 since their actuator and constraint forces are not known when the field runs (MuJoCo computes
@@ -46,6 +55,7 @@ reference of the compiled version in ``mjrft._native``); imports no mujoco.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -69,8 +79,13 @@ DEFAULT_REACH = 4.0
 #: body gained energy in a step.
 RK4_HOLD_STEPS = 4.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
-#: force of the free direction.
-PURE, STICK, SLIP = 0, 1, 2
+#: force of the free direction, the pure model linearised implicitly (slow moving body).
+PURE, STICK, SLIP, IMPLICIT = 0, 1, 2, 3
+#: Size of the twist perturbations (relative to |xi|_M) whose secants give the medium's Jacobian
+#: for the linearly implicit step. A secant rather than a tangent: each triangle's force jumps
+#: where it turns from trailing to leading, so the tangent of the summed force is noisy; 0.1
+#: and 0.01 give transverse eigenvalues within 7 % of each other on the mole-crab ellipsoid.
+JACOBIAN_STEP = 0.1
 
 
 @dataclass(frozen=True)
@@ -126,6 +141,109 @@ def keeps_sense(
     return inertia_dot(probe, twist, mass, inertia) > 0.0
 
 
+def _mass_matrix(mass: float, inertia: np.ndarray) -> np.ndarray:
+    """(6, 6) block diagonal of m I_3 and the (3, 3) inertia (world axes)."""
+    mm = np.zeros((6, 6))
+    mm[:3, :3] = mass * np.eye(3)
+    mm[3:, 3:] = inertia
+    return mm
+
+
+def stiff(
+    pure: np.ndarray,
+    twist: np.ndarray,
+    mass: float,
+    inertia: np.ndarray,
+    dt: float,
+    steps: float,
+) -> bool:
+    """True if the medium alone could change the twist by its whole size within ``steps`` steps:
+    ``steps dt |M^-1 W(xi)|_M >= |xi|_M``. Arguments as in :func:`treat` (world frame).
+
+    Why: W is homogeneous of degree 0, so its Jacobian across the motion scales as |W| / |xi|;
+    an explicit step of a transverse mode (a tilt, a sideways drift) overshoots once
+    dt |M^-1 J| passes ~1 and grows at the step frequency once it passes 2 (benchmarks/RESULTS.md,
+    "Rocking"). A body this test flags is moved with the linearly implicit force instead.
+    """
+    mm = _mass_matrix(mass, inertia)
+    twist = np.asarray(twist, dtype=float)
+    pure = np.asarray(pure, dtype=float)
+    w_norm2 = float(pure @ np.linalg.solve(mm, pure))
+    return (steps * dt) ** 2 * w_norm2 >= float(twist @ mm @ twist)
+
+
+def transverse_basis(twist: np.ndarray, mass: float, inertia: np.ndarray) -> np.ndarray:
+    """(5, 6) twists, orthonormal in <., .>_M and M-orthogonal to ``twist`` (world frame).
+
+    Gram-Schmidt from the twist's direction over the coordinate axes scaled to unit M-norm,
+    taking at each round the axis with the largest remainder (so none is nearly dependent).
+    """
+    mm = _mass_matrix(mass, inertia)
+    basis = [np.asarray(twist, dtype=float) / math.sqrt(float(twist @ mm @ twist))]
+    axes = [np.eye(6)[j] / math.sqrt(mm[j, j]) for j in range(6)]
+    for _ in range(5):
+        best, best_n = None, -1.0
+        for a in axes:
+            r = a - sum(float(u @ mm @ a) * u for u in basis)
+            rn = math.sqrt(max(float(r @ mm @ r), 0.0))
+            if rn > best_n:
+                best, best_n = r, rn
+        basis.append(best / best_n)
+    return np.array(basis[1:])
+
+
+def implicit_wrench(
+    pure: np.ndarray,
+    wrench_at: Callable[[np.ndarray], np.ndarray],
+    twist: np.ndarray,
+    mass: float,
+    inertia: np.ndarray,
+    other: np.ndarray,
+    dt: float,
+) -> np.ndarray | None:
+    """The medium's wrench of a linearly implicit (one Newton step of backward Euler), or None.
+
+    ``(M - dt J') d = M (xi_e - c xi)`` and the wrench ``W(xi) + J' d``: xi_e = xi + dt M^-1
+    (f + W(xi)) is the explicit step's end, c = |xi_e|_M / |xi|_M, J' = J / c the Jacobian at
+    c xi (with c = 1 this is ``(M - dt J) d = dt (f + W)``, Rosenbrock-Euler). J is the medium's
+    Jacobian at xi from secants along the 5 transverse directions of :func:`transverse_basis`
+    (J xi = 0 exactly: W is homogeneous of degree 0, Euler's theorem; so 5 evaluations, not 6).
+    Along the motion this is the explicit step (stopping is the stick's job); across it, the
+    step is backward Euler, which damps the stiff transverse modes instead of amplifying them.
+    None (the treatment's step 3 decides) if the result is not finite, reverses the motion
+    within the step, or does positive work over the step (trapezoid of the power). Arguments
+    as in :func:`treat` (world frame; wrenches about the CoM).
+    """
+    twist = np.asarray(twist, dtype=float)
+    pure = np.asarray(pure, dtype=float)
+    other = np.asarray(other, dtype=float)
+    mm = _mass_matrix(mass, inertia)
+    n = math.sqrt(float(twist @ mm @ twist))
+    h = JACOBIAN_STEP * n
+    jac = np.zeros((6, 6))
+    for u in transverse_basis(twist, mass, inertia):
+        dw = (np.asarray(wrench_at(twist + h * u), dtype=float) - pure) / h
+        jac += np.outer(dw, mm @ u)
+    end_pure = twist + np.linalg.solve(mm, dt * (other + pure))
+    # Linearise at c xi, c = |xi_end|_M / |xi|_M of the explicit step: the same direction (so
+    # the same W) at the speed the step ends with, where the Jacobian is J / c (degree -1). A
+    # body speeding up from rest (c >> 1) is otherwise linearised far outside J's validity.
+    c = math.sqrt(max(float(end_pure @ mm @ end_pure), 0.0)) / n
+    if not c > 0.0:
+        return None
+    jac /= c
+    d_xi = np.linalg.solve(mm - dt * jac, mm @ (end_pure - c * twist))
+    f = pure + jac @ d_xi
+    if not np.all(np.isfinite(f)):
+        return None
+    end = twist + np.linalg.solve(mm, dt * (other + f))
+    if float(end @ mm @ twist) <= 0.0:
+        return None
+    if float(f @ (twist + end)) > 0.0:
+        return None
+    return f
+
+
 def treat(
     pure: np.ndarray,
     wrench_at: Callable[[np.ndarray], np.ndarray],
@@ -135,6 +253,7 @@ def treat(
     other: np.ndarray,
     dt: float,
     reach: float = DEFAULT_REACH,
+    implicit: bool = True,
 ) -> tuple[np.ndarray, int]:
     """The wrench the medium applies to one free rigid body over a step, and the decision.
 
@@ -145,8 +264,12 @@ def treat(
       mass: [kg] (> 0). inertia: (3, 3) inertia about the CoM [kg m^2], world axes (SPD).
       other: (6,) every other wrench on the body over the step [N, N m], world, about the CoM.
       dt: step [s] (> 0). reach: see the module docstring.
+      implicit: False keeps the pure model for slow moving bodies (step 2), as the field does
+        under RK4: its stages 2-4 would feel the explicit pure model again, and holding the
+        first stage's implicit wrench over the step lags the depth (benchmarks/RESULTS.md,
+        "Rocking").
     Returns:
-      (wrench (6,), decision): decision is PURE, STICK or SLIP.
+      (wrench (6,), decision): decision is PURE, STICK, SLIP or IMPLICIT.
     """
     twist = np.asarray(twist, dtype=float)
     pure = np.asarray(pure, dtype=float)
@@ -157,7 +280,12 @@ def treat(
 
     v_free = twist + dt * m_inv(other)
     if keeps_sense(pure, twist, mass, inertia, other, dt, reach):
-        return pure.copy(), PURE
+        if not (implicit and stiff(pure, twist, mass, inertia, dt, reach)):
+            return pure.copy(), PURE
+        f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt)
+        if f is not None:
+            return f, IMPLICIT
+        # Implicitly the motion would reverse within the step (or gain work): step 3 decides.
     n2 = inertia_dot(v_free, v_free, mass, inertia)
     if n2 > 0.0:
         r = np.asarray(wrench_at(v_free), dtype=float)
