@@ -20,8 +20,10 @@ body tagged for the granular field, releases it at rest with its lowest point on
 * per run: peak and final depth, the final depth's relative error against ``d_qs`` and ``d_dyn``,
   drift over the hold phase, creep rate, post-settle speeds, step-frequency oscillation (reversals
   of the linear or angular velocity), swing of the vertical and size of the lateral RFT force
-  over the last second, maximum tilt, energy gained over a step against the issue's tolerance,
-  and failures (exceptions such as the field's FloatingPointError, NaN, MuJoCo resets).
+  over the last second, maximum tilt, energy gained over a step against the issue's tolerance
+  (net of the work the lowering force does over that step: the criterion is about the medium,
+  and a user force is not passive), and failures (exceptions such as the field's
+  FloatingPointError, NaN, MuJoCo resets).
 
 Frames and units: SI throughout (m, s, kg, N, J). World z is up, the free surface is z = 0 and
 the depth of the body is the depth of its lowest point, d = -(z_c - h(R)), with z_c the height
@@ -171,7 +173,7 @@ class Result:
     fz_range_W: float = math.nan  # (max - min) of the RFT F_z over the last second / m g
     flat_W: float = math.nan  # max horizontal RFT force over the last second / m g
     tilt_deg: float = math.nan  # max angle of the body z axis from vertical
-    egain_J: float = math.nan  # max energy gain over one step
+    egain_J: float = math.nan  # max energy gain over one step, net of the user force's work
     egain_ratio: float = math.nan  # max of gain / (E_ABS_TOL_J + E_REL_TOL |E|)
     egain_steps: int = 0  # steps whose gain exceeds that tolerance
     e_hold_J: float = math.nan  # E(end) - E(t_settle): net energy change over the hold
@@ -280,6 +282,26 @@ def reference_depths(
 # --------------------------------------------------------------------------- one run
 
 
+def com_positions(model: mujoco.MjModel, body: int, qpos: np.ndarray) -> np.ndarray:
+    """(T, 3) world positions [m] of one free body's centre of mass from its (T, 7) free-joint
+    positions (origin, quaternion w x y z)."""
+    return qpos[:, :3] + quat_to_mat(qpos[:, 3:7]) @ model.body_ipos[body]
+
+
+def user_work(model: mujoco.MjModel, body: int, qpos: np.ndarray, user_f: np.ndarray) -> np.ndarray:
+    """(T - 1,) work [J] of the user force on one body over each step.
+
+    Args:
+      qpos: (T, 7) free-joint positions after each step (row 0: initial).
+      user_f: (T, 3) world force [N] applied at the CoM (``xfrc_applied``) during the step that
+        ends at each row (row 0 unused).
+    The force is constant over a step (MuJoCo holds ``xfrc_applied`` through all RK4 stages), so
+    its work is exactly F . (x_com(end) - x_com(start)) on whatever path the integrator takes.
+    """
+    com = com_positions(model, body, qpos)
+    return np.einsum("ti,ti->t", user_f[1:], np.diff(com, axis=0))
+
+
 def mechanical_energy(
     model: mujoco.MjModel, body: int, qpos: np.ndarray, qvel: np.ndarray
 ) -> np.ndarray:
@@ -295,7 +317,7 @@ def mechanical_energy(
     g = -float(model.opt.gravity[2])
     rot = quat_to_mat(qpos[:, 3:7])  # body -> world
     ipos = model.body_ipos[body]
-    com = qpos[:, :3] + rot @ ipos
+    com = com_positions(model, body, qpos)
     w_body = qvel[:, 3:6]
     v_com = qvel[:, :3] + np.einsum("tij,tj->ti", rot, np.cross(w_body, ipos))
     r_i = quat_to_mat(model.body_iquat[body])  # inertia frame -> body frame
@@ -347,6 +369,7 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
     qpos = np.full((n + 1, 7), np.nan)
     qvel = np.full((n + 1, 6), np.nan)
     wrench = np.full((n + 1, 6), np.nan)  # RFT force, torque on the body (last forward pass)
+    user_f = np.zeros((n + 1, 3))  # lowering force during the step that ends at each row
     qpos[0], qvel[0], wrench[0] = data.qpos, data.qvel, 0.0
     done = 0
     t0 = time.perf_counter()
@@ -358,6 +381,7 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
                     data.xfrc_applied[body] = 0.0
                     s = min(1.0, (i - 1) / n_ramp)
                     data.xfrc_applied[body, 2] = weight * 0.5 * (1.0 + math.cos(math.pi * s))
+                    user_f[i, 2] = data.xfrc_applied[body, 2]
                 mujoco.mj_step(model, data)
                 qpos[i], qvel[i], wrench[i] = data.qpos, data.qvel, field.last_wrench[body]
                 if not np.all(np.isfinite(qvel[i])):
@@ -372,7 +396,8 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
         res.t_fail_s = (done + 1) * case.dt
     res.wall_s = time.perf_counter() - t0
     res.steps = done
-    measure(res, model, body, size, qpos[: done + 1], qvel[: done + 1], wrench[: done + 1], case)
+    n_ok = done + 1
+    measure(res, model, body, size, qpos[:n_ok], qvel[:n_ok], wrench[:n_ok], case, user_f[:n_ok])
     return res
 
 
@@ -385,6 +410,7 @@ def measure(
     qvel: np.ndarray,
     wrench: np.ndarray,
     case: Case,
+    user_f: np.ndarray | None = None,
 ) -> None:
     """Fill the measurement fields of res from the recorded trajectory (steps 0..T).
 
@@ -393,6 +419,8 @@ def measure(
       qpos, qvel: (T + 1, 7) and (T + 1, 6) free-joint state after each step (row 0: initial).
       wrench: (T + 1, 6) RFT force [N] and torque [N m] on the body, world frame, of the last
         forward pass of each step (``field.last_wrench``; for RK4 its last stage).
+      user_f: (T + 1, 3) user force [N] at the CoM during the step ending at each row (the
+        lowering), or None; its work is taken off each step's energy gain.
     """
     dt = case.dt
     axes = np.broadcast_to(size, (3,))
@@ -401,6 +429,8 @@ def measure(
     res.d_peak_m = float(np.max(depth))
     energy = mechanical_energy(model, body, qpos, qvel)
     gain = np.diff(energy)
+    if user_f is not None:
+        gain -= user_work(model, body, qpos, user_f)
     if gain.size:
         tol = E_ABS_TOL_J + E_REL_TOL * np.abs(energy[:-1])
         res.egain_J = float(np.max(gain))
