@@ -48,6 +48,13 @@ D_XPOS, D_XMAT, D_XIPOS, D_CVEL, D_SUBTREE_COM, D_GEOM_XPOS, D_XFRC = 0, 1, 2, 3
 D_USER, D_WRITTEN, D_XIMAT = 7, 8, 9
 D_TIME, D_RK4 = 10, 11  # address of d->time; the MjData's RK4 stage record (rk4_hold)
 DATA_WORDS = 12
+# The RK4 stage record: time of the last evaluated pass, the passes since, then per tagged body
+# a block of RK4_BODY words: its mode for stages 2-4, the twist (v at the CoM, omega; world)
+# of stage 1 and the implicit correction J'd of stage 1 (world force, torque about the CoM).
+RK4_HEAD, RK4_BODY = 2, 13
+# Modes: evaluate the pure model in every stage; hold stage 1's wrench; evaluate the model at the
+# stage's pose with stage 1's twist, plus stage 1's implicit correction (mjrft.lowspeed.IMPLICIT).
+RK4_PER_STAGE, RK4_HOLD, RK4_FROZEN = 0, 1, 2
 # Work counters (F_STATS): passes, triangles evaluated, acting, bodies stuck, bodies slipping
 # on the free direction's force, bodies moved with the linearly implicit force (mjrft.lowspeed).
 N_STATS = 6
@@ -126,18 +133,23 @@ def _first_bad_body(bodies, xpos, cvel):
 @numba.njit(cache=True)
 def rk4_hold(t, h, rec):
     """True if a forward pass at time t [s] is stage 2, 3 or 4 of an RK4 step whose stage 1 this
-    field evaluated; then the bodies flagged at stage 1 (treated, or reversing within
-    ``RK4_HOLD_STEPS``) keep that stage's wrench in ``xfrc_applied`` (held), and the others
-    feel the pure model of each stage.
+    field evaluated; then each body follows the mode stage 1 recorded for it: stuck, slipping or
+    reversing within ``RK4_HOLD_STEPS`` ones keep that stage's wrench in ``xfrc_applied``
+    (RK4_HOLD); ones moved by the linearly implicit step feel the model at the stage's pose but
+    stage 1's twist, plus stage 1's implicit correction (RK4_FROZEN); the others feel the pure
+    model of each stage.
 
     MuJoCo's RK4 (``mj_RungeKutta``) runs its stages at t0, t0 + h/2, t0 + h/2, t0 + h, with the
     stage times computed as ``t0 + c h``; the same expression here matches them exactly. rec
-    (2 + tagged bodies,) is the MjData's record: time of the last evaluated pass, the passes
-    since (1..4), then 1 per body to hold (written by ``step``; unused here). Any
-    other pattern (a user's ``mj_forward``, a new step at t0 + h) evaluates afresh, which is
+    (RK4_HEAD + RK4_BODY tagged bodies,) is the MjData's record: time of the last evaluated
+    pass, the passes since (1..4), then the bodies' blocks (written by ``step``; unused here).
+    Any other pattern (a user's ``mj_forward``, a new step at t0 + h) evaluates afresh, which is
     always safe. Why hold: the time-stepping stick needs the force constant over the step to end
     it at rest (per stage it keeps 3/8 of the velocity), and RK4's stage combination does not
-    damp a torque that jumps with the sign of a slow spin (benchmarks/RESULTS.md, "RK4").
+    damp a torque that jumps with the sign of a slow spin (benchmarks/RESULTS.md, "RK4"). Why
+    freeze the twist rather than hold: across a slow motion RFT is stiff (its stages would
+    overshoot, as the explicit step does), but along it the force changes with depth, and a held
+    force lags it (a dropped 1 g sphere at 5 ms stopped 10.6 % too deep).
     """
     n = rec[1]
     if (n == 1.0 or n == 2.0) and t == rec[0] + 0.5 * h:
@@ -157,15 +169,20 @@ def _body_twist_wrench(
     use_region, region, scratch, out,
 ):  # fmt: skip
     """Set out (6,) to the RFT wrench on body b's geoms in play moving with the twist (v at the
-    CoM [m/s], om [rad/s]; world frame); torque about the CoM."""
+    CoM [m/s], om [rad/s]; world frame); torque about the CoM. Returns the number of elements
+    evaluated and acting."""
     out[:] = 0.0
+    evaluated = 0
+    acting = 0
     for g in range(gint.shape[0]):
         if gint[g, G_BODY] != b or cull_row[g]:
             continue
-        _kernel.body_wrench(
+        acting += _kernel.body_wrench(
             cent, norm, area, gint[g, G_START], gint[g, G_STOP], xmat[b], xpos[b], om, v,
             xipos[b], xipos[b], co, ay, zeta, surface_z, use_region, region, out, scratch,
         )  # fmt: skip
+        evaluated += gint[g, G_STOP] - gint[g, G_START]
+    return evaluated, acting
 
 
 @numba.njit(cache=True)
@@ -292,7 +309,7 @@ def _implicit(
 def _treat_body(
     b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos, cvel,
     subtree_com, user, mass, inertia, gvec, dt, reach, jac_step, co, ay, zeta, surface_z,
-    use_region, region, scratch, w, ab,
+    use_region, region, scratch, w, ab, tw,
 ):  # fmt: skip
     """The low-speed treatment of one free body (mjrft.lowspeed.treat, compiled).
 
@@ -302,8 +319,8 @@ def _treat_body(
     cull_row (G,): 1 where the geom row is culled this pass. scratch (n_el, 3): element forces
     of the second evaluation (the field's per-element record keeps the pure model). ab (2,):
     set to |xi|^2_M and <d_xi, xi>_M (mjrft.lowspeed.keeps_sense is ab[0] + steps ab[1] > 0)
-    when the body is tested. jac_step: mjrft.lowspeed.JACOBIAN_STEP, 0 for no implicit step
-    (RK4). Returns the decision
+    when the body is tested. tw (6,): set to the body's twist (v at the CoM, omega; world).
+    jac_step: mjrft.lowspeed.JACOBIAN_STEP, 0 for no implicit step. Returns the decision
     (mjrft.lowspeed PURE, STICK, SLIP or IMPLICIT).
     """
     if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
@@ -331,6 +348,9 @@ def _treat_body(
     v[0] = cvel[b, 3] + om[1] * rz - om[2] * ry
     v[1] = cvel[b, 4] + om[2] * rx - om[0] * rz
     v[2] = cvel[b, 5] + om[0] * ry - om[1] * rx
+    for c in range(3):
+        tw[c] = v[c]
+        tw[3 + c] = om[c]
     iom = iw @ om
     # Other wrenches over the step: gravity, the user's row, the gyroscopic torque -w x Iw.
     tau = np.empty(3)
@@ -415,20 +435,23 @@ def _gravity(mdl, b, dsbl_bit):
 def _treat_all(
     mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos, xmat,
     xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch, wrench, stats, slow,
+    frozen,
 ):  # fmt: skip
     """Apply the low-speed treatment to every eligible tagged body with a geom in play.
 
     wrench (nbody, 6): pure RFT wrenches, replaced where treated; user (n_bt, 6) the user's rows.
+    slow (n_bt,): set where an RK4 step must not evaluate the pure model in its later stages
+    (treated, or reversing within RK4_HOLD_STEPS). frozen (n_bt, 12): for bodies moved by the
+    implicit step, set to their twist (v at the CoM, omega) and the correction J'd (RK4_FROZEN).
     """
     nbody = wrench.shape[0]
     dt = numba.carray(f64_ptr(mdl[M_TIMESTEP]), 1)[0]
     mass_all = numba.carray(f64_ptr(mdl[M_BODY_MASS]), nbody)
     inertia_all = numba.carray(f64_ptr(mdl[M_BODY_INERTIA]), (nbody, 3))
     dsbl = np.int32(par[P_DSBL_GRAVITY])
-    # RK4 keeps the pure model for slow moving bodies (mjrft.lowspeed.treat, ``implicit``).
-    rk4 = numba.carray(i32_ptr(mdl[M_INTEGRATOR]), 1)[0] == INT_RK4
-    jac_step = 0.0 if rk4 else par[P_JAC_STEP]
+    jac_step = par[P_JAC_STEP]
     ab = np.zeros(2)
+    pure = np.empty(6)
     for k in range(bodies.shape[0]):
         b = bodies[k]
         slow[k] = False
@@ -442,12 +465,17 @@ def _treat_all(
             continue
         ab[0] = 0.0
         ab[1] = 0.0
+        pure[:] = wrench[b]
         d = _treat_body(
             b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos,
             cvel, subtree_com, user[k], mass_all[b], inertia_all[b], _gravity(mdl, b, dsbl), dt,
             par[P_REACH], jac_step, co, par[P_AY], par[P_ZETA], par[P_SURFACE],
-            par[P_USE_REGION] != 0.0, region, scratch, wrench[b], ab,
+            par[P_USE_REGION] != 0.0, region, scratch, wrench[b], ab, frozen[k, :6],
         )  # fmt: skip
+        for c in range(6):  # only a body moved by the implicit step has a record (RK4_FROZEN)
+            frozen[k, 6 + c] = wrench[b, c] - pure[c] if d == 3 else 0.0
+            if d != 3:
+                frozen[k, c] = 0.0
         decision[k] = d
         slow[k] = d != 0 or ab[0] + par[P_RK4_HOLD] * ab[1] <= 0.0
         if d == 1:
@@ -482,9 +510,11 @@ def step(field_addr, data_addr):
         return -1 - bad
     mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
     rk4 = numba.carray(i32_ptr(mdl[M_INTEGRATOR]), 1)[0] == INT_RK4
-    rec = numba.carray(f64_ptr(e[D_RK4]), 2 + n_bt)
-    # keep[b]: body b keeps the wrench its RK4 step's first stage wrote (flagged slow there).
+    rec = numba.carray(f64_ptr(e[D_RK4]), RK4_HEAD + RK4_BODY * n_bt)
+    # keep[b]: body b keeps the wrench its RK4 step's first stage wrote (RK4_HOLD there);
+    # frz[b]: body b feels the model at its stage pose with stage 1's twist (RK4_FROZEN).
     keep = np.zeros(nbody, np.bool_)
+    frz = np.zeros(nbody, np.bool_)
     held = False
     if rk4:
         t = numba.carray(f64_ptr(e[D_TIME]), 1)[0]
@@ -492,7 +522,9 @@ def step(field_addr, data_addr):
         held = rk4_hold(t, h, rec)
         if held:
             for k in range(n_bt):
-                keep[bodies[k]] = rec[2 + k] != 0.0
+                mode = rec[RK4_HEAD + RK4_BODY * k]
+                keep[bodies[k]] = mode == RK4_HOLD
+                frz[bodies[k]] = mode == RK4_FROZEN
     ngeom_model = 0
     for g in range(n_geom):
         ngeom_model = max(ngeom_model, gint[g, G_GEOM] + 1)
@@ -522,12 +554,28 @@ def step(field_addr, data_addr):
                 dirty[g] = 0
             continue
         dirty[g] = 1
+        if frz[b]:
+            continue
         acting += _kernel.body_wrench(
             cent, norm, area, start, stop, xmat[b], xpos[b], cvel[b, :3], cvel[b, 3:],
             subtree_com[gint[g, G_ROOT]], xipos[b], co, ay, zeta, surface_z, use_region,
             region, last[b], elem_force,
         )  # fmt: skip
         evaluated += stop - start
+    if held:
+        for k in range(n_bt):
+            b = bodies[k]
+            if frz[b]:
+                blk = RK4_HEAD + RK4_BODY * k
+                ne, na = _body_twist_wrench(
+                    b, cull_row, gint, cent, norm, area, xmat, xpos, xipos,
+                    rec[blk + 1 : blk + 4], rec[blk + 4 : blk + 7], co, ay, zeta, surface_z,
+                    use_region, region, elem_force, last[b],
+                )  # fmt: skip
+                for c in range(6):
+                    last[b, c] += rec[blk + 7 + c]
+                evaluated += ne
+                acting += na
     if evaluated or not held:
         stats[0] += 1
     stats[1] += evaluated
@@ -548,6 +596,7 @@ def step(field_addr, data_addr):
         for k in range(n_bt):
             decision[k] = 0
         slow = np.zeros(n_bt, np.bool_)
+        frozen = np.zeros((n_bt, 12))
         if par[P_TREAT] != 0.0:
             eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
             ximat = numba.carray(f64_ptr(e[D_XIMAT]), (nbody, 3, 3))
@@ -555,10 +604,13 @@ def step(field_addr, data_addr):
             _treat_all(
                 mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area, geom_xpos,
                 xmat, xpos, ximat, xipos, cvel, subtree_com, user, co, par, region, scratch,
-                last, stats, slow,
+                last, stats, slow, frozen,
             )  # fmt: skip
         for k in range(n_bt):
-            rec[2 + k] = 1.0 if slow[k] else 0.0
+            blk = RK4_HEAD + RK4_BODY * k
+            rec[blk] = RK4_FROZEN if decision[k] == 3 else (RK4_HOLD if slow[k] else 0.0)
+            for c in range(12):
+                rec[blk + 1 + c] = frozen[k, c]
     ring_size = f[F_RING_SIZE]
     ring = numba.carray(f64_ptr(f[F_RING]), (ring_size + 1, 2, n_bt, 6))
     slot = int(ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
@@ -608,6 +660,7 @@ def batch_wrench(
     user = np.empty((n_bt, 6))
     decision = np.empty(n_bt, np.int64)
     slow = np.empty(n_bt, np.bool_)
+    frozen = np.empty((n_bt, 12))
     treat = par[P_TREAT] != 0.0
     mdl = numba.carray(u64_ptr(f[F_MODEL]), MODEL_WORDS)
     eligible = numba.carray(i64_ptr(f[F_ELIGIBLE]), n_bt)
@@ -633,7 +686,7 @@ def batch_wrench(
                 mdl, eligible, decision, bodies, cull_row, gint, cent, norm, area,
                 geom_xpos[s], xmat[s].reshape((-1, 3, 3)), xpos[s],
                 ximat[s].reshape((-1, 3, 3)), xipos[s], cvel[s], subtree_com[s], user, co, par,
-                region, elem_force, out[s], stats, slow,
+                region, elem_force, out[s], stats, slow, frozen,
             )  # fmt: skip
     stats[0] += n_sim
     stats[1] += evaluated.sum()

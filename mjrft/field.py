@@ -9,8 +9,9 @@ differences). Two ways to apply it:
   ``mj_step`` — the wrench is held over the step (all RK4 stages see the same force);
 * installed: ``with field.installed(): mj_step(...)`` — in every forward pass the intruding
   bodies' rows of ``xfrc_applied`` are set to the user's part plus that pass's RFT wrench; in an
-  RK4 step, bodies the low-speed treatment acts on (or about to) keep the wrench of the first
-  stage over the other three (``_native.rk4_hold``), moving bodies are evaluated in every stage.
+  RK4 step, bodies the low-speed treatment holds (or is about to) keep the wrench of the first
+  stage over the other three, bodies it moves implicitly keep the first stage's twist and
+  implicit correction (``_native.rk4_hold``), other moving bodies are evaluated in every stage.
 
 Why ``xfrc_applied`` and not ``qfrc_passive``: MuJoCo's force/torque sensors (load cells) see
 external body forces only through ``cfrc_ext``, which is built from ``xfrc_applied`` and contacts.
@@ -102,6 +103,8 @@ XFRC_HISTORY = 4096
 
 
 _NO_REGION = np.zeros((2, 3))
+# The RK4 stage record's layout and modes (mjrft._native.RK4_*; tests check they agree).
+_RK4_HEAD, _RK4_BODY, _RK4_HOLD, _RK4_FROZEN = 2, 13, 1.0, 2.0
 
 
 def _free_rigid(model: mujoco.MjModel, b: int, tagged: set[int]) -> bool:
@@ -204,7 +207,7 @@ class _DataState:
     user: np.ndarray
     written: np.ndarray
     entry: np.ndarray
-    rk4: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # + tagged bodies
+    rk4: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # + body blocks
     finalizer: weakref.finalize | None = None
 
 
@@ -296,7 +299,8 @@ class GranularField:
         #: Per body of ``body_ids``: the treatment's decision in the last pass (mjrft.lowspeed
         #: PURE, STICK, SLIP or IMPLICIT).
         self.last_decision = np.zeros(len(self.body_ids), dtype=np.int64)
-        self._rk4_slow = np.zeros(len(self.body_ids), dtype=bool)  # see _native.rk4_hold
+        # Per body: its RK4 stage record block of the last evaluated pass (_native.rk4_hold).
+        self._rk4_block = np.zeros((len(self.body_ids), _RK4_BODY))
         #: (nbody, 6) wrench of the most recent forward pass of the installed field (updated in
         #: place: keep a reference if you like).
         self.last_wrench = np.zeros((model.nbody, 6))
@@ -498,7 +502,7 @@ class GranularField:
         """
         out = self._pure_wrench(data, out)
         self.last_decision[:] = lowspeed.PURE
-        self._rk4_slow[:] = False
+        self._rk4_block[:] = 0.0
         if self.low_speed.on:
             self._treat(data, out, user_xfrc)
         return out
@@ -583,12 +587,14 @@ class GranularField:
                 other,
                 dt,
                 self.low_speed.reach,
-                implicit=m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4,
             )
             self.last_decision[k] = dec
-            self._rk4_slow[k] = dec != lowspeed.PURE or not lowspeed.keeps_sense(
+            if dec == lowspeed.IMPLICIT:
+                self._rk4_block[k] = (_RK4_FROZEN, *twist, *(w[b] - pure))
+            elif dec != lowspeed.PURE or not lowspeed.keeps_sense(
                 pure, twist, mass, iw, other, dt, lowspeed.RK4_HOLD_STEPS
-            )
+            ):
+                self._rk4_block[k, 0] = _RK4_HOLD
             if dec == lowspeed.STICK:
                 self._stats[3] += 1
             elif dec == lowspeed.SLIP:
@@ -675,7 +681,8 @@ class GranularField:
 
             held = bool(rk4_hold(data.time, model.opt.timestep, st.rk4))
             if held:
-                keep = st.rk4[2:] != 0.0
+                blocks = st.rk4[_RK4_HEAD:].reshape(len(rows), _RK4_BODY)
+                keep = blocks[:, 0] == _RK4_HOLD
                 if keep.all():
                     return
         current = np.array(data.xfrc_applied[rows])
@@ -686,9 +693,14 @@ class GranularField:
         if held:  # the other bodies feel the pure model of this stage, decisions unchanged
             w = self._pure_wrench(data)
             w[rows[keep]] = self.last_wrench[rows[keep]]
+            for k in np.flatnonzero(blocks[:, 0] == _RK4_FROZEN):
+                be = self.bodies[k]
+                idx = self._candidates(data, be)
+                if idx is not None:
+                    w[be.body] = self._wrench_at(data, be, idx, blocks[k, 1:7]) + blocks[k, 7:]
         else:
             w = self.wrench(data, user_xfrc=user)
-            st.rk4[2:] = self._rk4_slow
+            st.rk4[_RK4_HEAD:] = self._rk4_block.ravel()
         total = st.user + w[rows]
         total[keep] = current[keep]
         data.xfrc_applied[rows] = total
@@ -711,7 +723,7 @@ class GranularField:
             user=self._adopt(current),
             written=current.copy(),
             entry=np.zeros(_native_words(), dtype=np.uint64),
-            rk4=np.zeros(2 + len(self.body_ids)),
+            rk4=np.zeros(_RK4_HEAD + _RK4_BODY * len(self.body_ids)),
         )
         if self._table is not None:
             from mjrft import _native as nt

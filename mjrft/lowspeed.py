@@ -63,7 +63,8 @@ import numpy as np
 
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
-#: Default ``reach``. Measured (benchmarks/RESULTS.md, "RK4 and the reach"; settle 1.5 s, hold
+#: Default ``reach``. Measured in the third session, before the implicit step (benchmarks/
+#: RESULTS.md, "RK4 and the reach"; settle 1.5 s, hold
 #: 2 s, 60 cells per integrator and release): with slip limited to forces that do no work over
 #: the step, reaches 1, 4, 8 settle every dropped RK4 body and 49, 56, 58 of 60 slowly lowered
 #: ones; 4 and 8 also every Euler/implicitfast body; no thrown body gains energy at any of them
@@ -72,8 +73,10 @@ MODES = ("stick", "off")
 #: ``reach`` steps) stays small, so the pure model keeps more motion.
 DEFAULT_REACH = 4.0
 #: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
-#: acted on, or whose motion would reverse within this many steps of the change predicted at
-#: the step's start; other bodies feel the pure model in every stage (mjrft._native.rk4_hold).
+#: stuck or slipped, or whose motion would reverse within this many steps of the change
+#: predicted at the step's start; a body moved by the implicit step keeps the first stage's
+#: twist and correction; other bodies feel the pure model in every stage
+#: (mjrft._native.rk4_hold).
 #: Measured at reach 1 with the earlier slip rule (benchmarks/RESULTS.md): 2, 4, 8 settle 38,
 #: 46, 51 of 60 slowly lowered RK4 cells (all drops settle), but with 2 and 8 a thrown spinning
 #: body gained energy in a step.
@@ -264,10 +267,10 @@ def treat(
       mass: [kg] (> 0). inertia: (3, 3) inertia about the CoM [kg m^2], world axes (SPD).
       other: (6,) every other wrench on the body over the step [N, N m], world, about the CoM.
       dt: step [s] (> 0). reach: see the module docstring.
-      implicit: False keeps the pure model for slow moving bodies (step 2), as the field does
-        under RK4: its stages 2-4 would feel the explicit pure model again, and holding the
-        first stage's implicit wrench over the step lags the depth (benchmarks/RESULTS.md,
-        "Rocking").
+      implicit: False keeps the pure model for slow moving bodies (step 2): the explicit
+        step, which rocks a slowly sinking body (benchmarks/RESULTS.md, "Rocking"). The field
+        always passes True; under RK4 its later stages keep the first stage's twist and
+        implicit correction (mjrft._native.rk4_hold).
     Returns:
       (wrench (6,), decision): decision is PURE, STICK, SLIP or IMPLICIT.
     """

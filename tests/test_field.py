@@ -427,9 +427,12 @@ def test_rk4_holds_a_body_at_rest_over_the_step():
 
 
 def test_rk4_stage_constant_matches_mujoco():
-    from mjrft import _native
+    from mjrft import _native, field
 
     assert _native.INT_RK4 == int(mujoco.mjtIntegrator.mjINT_RK4)
+    # the Python path's copy of the stage record layout
+    assert (field._RK4_HEAD, field._RK4_BODY) == (_native.RK4_HEAD, _native.RK4_BODY)
+    assert (field._RK4_HOLD, field._RK4_FROZEN) == (_native.RK4_HOLD, _native.RK4_FROZEN)
 
 
 def test_rk4_hold_recognises_only_the_stage_pattern():
@@ -447,10 +450,19 @@ def test_rk4_hold_recognises_only_the_stage_pattern():
     assert [rk4_hold(t, h, rec) for t in seq] == [False, False, False, True, True, False, False]
 
 
-@pytest.mark.parametrize("start", ["moving", "resting"])
+# A light ball just below the surface, sinking slowly: the implicit step moves it, and RK4's
+# later stages keep its first stage's twist and correction (mjrft._native.RK4_FROZEN).
+SINKING_BALL = BALL.replace('pos="0.01 -0.02 -0.004"', 'pos="0.01 -0.02 0.008"')
+SINKING = {"v": (0.001, 0.0, -0.01), "w": (0.3, -0.2, 0.1)}
+
+
+@pytest.mark.parametrize("start", ["moving", "resting", "sinking"])
 def test_python_material_path_follows_the_same_rk4_rule(start):
     """A medium given as Python callables (no native table) follows the same RK4 rule."""
-    m = heavy_model(option='integrator="RK4"')
+    if start == "sinking":
+        m = mujoco.MjModel.from_xml_string(scene_xml(SINKING_BALL, option='integrator="RK4"'))
+    else:
+        m = heavy_model(option='integrator="RK4"')
     compiled = GranularField(m)
     mat = mjrft.Material.from_callables(
         compiled.material.fourier.alpha_x, compiled.material.fourier.alpha_z,
@@ -458,12 +470,15 @@ def test_python_material_path_follows_the_same_rk4_rule(start):
     )  # fmt: skip
     fld = GranularField(m, material=mat)
     assert fld._table is None  # the Python path
-    motion = SHOT if start == "moving" else {"v": (0.0, 0.0, 0.0), "w": (0.0, 0.0, 0.0)}
+    rest = {"v": (0.0, 0.0, 0.0), "w": (0.0, 0.0, 0.0)}
+    motion = {"moving": SHOT, "resting": rest, "sinking": SINKING}[start]
     a, _ = simulate(m, 40, fld=fld, motion=motion)
     b, _ = simulate(m, 40, fld=compiled, motion=motion)
     np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-9)
     held = compiled.stats["calls"] < 4 * 40  # some steps held (resting), none (moving)
     assert held == (start == "resting")
+    implicit = compiled.stats["implicit"]  # its RK4 stages keep the twist, evaluated anew
+    assert fld.stats["implicit"] == implicit and (implicit > 0 or start != "sinking")
 
 
 def test_compilation_works_while_installed_and_callback_restored():

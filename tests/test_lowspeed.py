@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjrft import lowspeed
+from mjrft import _native, lowspeed
 from mjrft.body import trajectory_wrenches
 from mjrft.field import GranularField
 from mjrft.scene import SceneError
@@ -176,13 +176,14 @@ def _lower(m, d, fld, weight, ramp_steps, after_steps):
     return tilt
 
 
-@pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
+@pytest.mark.parametrize("integrator", list(INTEGRATORS))
 def test_very_slowly_lowered_ellipsoid_neither_rocks_nor_tips(integrator):
     """Lowered over 200 of its time scales sqrt(d_qs / g) (10x the map's ramp): the sinking is
     slow for long, where RFT is stiff across the motion. With the explicit pure model for the
     moving phases the ellipsoid rocked at the step frequency and tipped over (93 deg at 1 ms,
     1 g to 100 kg; benchmarks/RESULTS.md, "Rocking"); the linearly implicit step keeps it
-    upright at d_qs. RK4 is not in this test: its stages 2-4 feel the explicit pure model."""
+    upright at d_qs. Under RK4 the pure model in every stage tipped it too; its later stages
+    now keep the first stage's twist and implicit correction."""
     xml, size = body_xml("ellipsoid", 1.0)
     m = mujoco.MjModel.from_xml_string(xml)
     m.opt.timestep, m.opt.integrator = 0.001, INTEGRATORS[integrator]
@@ -440,12 +441,18 @@ def test_compiled_treatment_equals_numpy_reference(reach):
             mujoco.mj_forward(m, d)
             native = d.xfrc_applied[1] - user[1]
             dec = int(fld.last_decision[0])
-            hold = fld._data[d._address].rk4[2]  # would an RK4 step hold this body?
+            block = fld._data[d._address].rk4[2:].copy()  # what RK4's later stages would do
         ref = fld.wrench(d, user_xfrc=user)[1]
         assert dec == fld.last_decision[0]
-        assert hold == fld._rk4_slow[0]
+        # mode, twist and implicit correction of the body's RK4 stage record, both paths
+        assert block[0] == fld._rk4_block[0, 0]
+        assert (block[0] == _native.RK4_FROZEN) == (dec == lowspeed.IMPLICIT)
+        np.testing.assert_allclose(block[1:7], fld._rk4_block[0, 1:7], rtol=1e-12, atol=0.0)
+        np.testing.assert_allclose(
+            block[7:], fld._rk4_block[0, 7:], rtol=REF_RTOL, atol=REF_RTOL * np.abs(ref).max()
+        )
         seen.add(dec)
-        holds.add(bool(hold) and dec == lowspeed.PURE)
+        holds.add(block[0] == _native.RK4_HOLD and dec == lowspeed.PURE)
         np.testing.assert_allclose(native, ref, rtol=REF_RTOL, atol=REF_RTOL * np.abs(ref).max())
     assert seen == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP, lowspeed.IMPLICIT}
     if reach < lowspeed.RK4_HOLD_STEPS:  # else pure-model bodies that RK4 holds are rare
