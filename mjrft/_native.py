@@ -572,8 +572,9 @@ def step(field_addr, data_addr):
                     rec[blk + 1 : blk + 4], rec[blk + 4 : blk + 7], co, ay, zeta, surface_z,
                     use_region, region, elem_force, last[b],
                 )  # fmt: skip
-                for c in range(6):
-                    last[b, c] += rec[blk + 7 + c]
+                if ne > 0:  # in play: the correction acts as the model does (Python path too)
+                    for c in range(6):
+                        last[b, c] += rec[blk + 7 + c]
                 evaluated += ne
                 acting += na
     if evaluated or not held:
@@ -608,7 +609,7 @@ def step(field_addr, data_addr):
             )  # fmt: skip
         for k in range(n_bt):
             blk = RK4_HEAD + RK4_BODY * k
-            rec[blk] = RK4_FROZEN if decision[k] == 3 else (RK4_HOLD if slow[k] else 0.0)
+            rec[blk] = RK4_FROZEN if decision[k] == 3 else (RK4_HOLD if slow[k] else RK4_PER_STAGE)
             for c in range(12):
                 rec[blk + 1 + c] = frozen[k, c]
     ring_size = f[F_RING_SIZE]
