@@ -55,6 +55,9 @@ RK4_HEAD, RK4_BODY = 2, 13
 # Modes: evaluate the pure model in every stage; hold stage 1's wrench; evaluate the model at the
 # stage's pose with stage 1's twist, plus stage 1's implicit correction (mjrft.lowspeed.IMPLICIT).
 RK4_PER_STAGE, RK4_HOLD, RK4_FROZEN = 0, 1, 2
+# mjrft.lowspeed.ROUNDING (checked by the tests): a relative size below which an energy
+# balance whose terms cancel counts as zero.
+ROUNDING = 64.0 * np.finfo(np.float64).eps
 # Work counters (F_STATS): passes, triangles evaluated, acting, bodies stuck, bodies slipping
 # on the free direction's force, bodies moved with the linearly implicit force (mjrft.lowspeed).
 N_STATS = 6
@@ -224,13 +227,55 @@ def _solve6(a, rhs):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _step_work(w, twist, end, other, mass, dt, semi):
+    """2 / dt times the energy a step gains with the medium's wrench w (mjrft.lowspeed.step_work).
+    (6,) arrays, world frame; semi: positions advance with the end velocity (not RK4)."""
+    p = 0.0
+    for c in range(6):
+        p += w[c] * (twist[c] + end[c])
+    if semi:
+        q = 0.0
+        for c in range(3):
+            q += other[c] * (other[c] + w[c])
+        p -= dt * q / mass
+    return p
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _stick_fraction(stick, twist, other, mass, n2, dt, semi):
+    """The largest fraction of the stick wrench that adds no energy over the step
+    (mjrft.lowspeed.stick_fraction). (6,) arrays, world frame; n2 = |xi_free|^2_M."""
+    size = 0.0  # the balance's terms cancel: rounding counts as zero (lowspeed.ROUNDING)
+    for c in range(6):
+        size += abs(stick[c] * twist[c])
+    if semi:
+        for c in range(3):
+            size += dt * abs(other[c]) * (abs(other[c]) + abs(stick[c])) / mass
+    if _step_work(stick, twist, np.zeros(6), other, mass, dt, semi) <= ROUNDING * size:
+        return 1.0
+    a2 = n2 / dt
+    b1 = -a2
+    c0 = 0.0
+    for c in range(6):
+        b1 += stick[c] * twist[c]
+    if semi:
+        for c in range(3):
+            b1 -= dt * other[c] * stick[c] / mass
+            c0 -= dt * other[c] * other[c] / mass
+    root = np.sqrt(b1 * b1 - 4.0 * a2 * c0)
+    lam = -2.0 * c0 / (b1 + root) if b1 > 0.0 else (root - b1) / (2.0 * a2)
+    return min(max(lam, 0.0), 1.0)
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _implicit(
     b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, twist, other, mass, iw, ii, dt,
-    jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w,
+    jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w, semi,
 ):  # fmt: skip
     """The linearly implicit wrench (mjrft.lowspeed.implicit_wrench, compiled): replaces w (6,)
     (the pure wrench at twist) and returns True, or leaves it and returns False. twist, other
-    (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse."""
+    (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse; semi:
+    positions advance with the end velocity (mjrft.lowspeed.step_work)."""
     mm = np.zeros((6, 6))
     for c in range(3):
         mm[c, c] = mass
@@ -288,7 +333,7 @@ def _implicit(
     for c in range(6):
         if not np.isfinite(f[c]):
             return False
-    # Guards as in the reference: the motion keeps its sense, no positive work over the step.
+    # Guards as in the reference: the motion keeps its sense, no energy added over the step.
     end = np.empty(6)
     ea = dt * (ii @ (other[3:] + f[3:]))
     for c in range(3):
@@ -296,10 +341,7 @@ def _implicit(
         end[3 + c] = twist[3 + c] + ea[c]
     if _m_dot(end, twist, mass, iw) <= 0.0:
         return False
-    p_f = 0.0
-    for c in range(6):
-        p_f += f[c] * (twist[c] + end[c])
-    if p_f > 0.0:
+    if _step_work(f, twist, end, other, mass, dt, semi) > 0.0:
         return False
     w[:] = f
     return True
@@ -309,7 +351,7 @@ def _implicit(
 def _treat_body(
     b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos, cvel,
     subtree_com, user, mass, inertia, gvec, dt, reach, jac_step, co, ay, zeta, surface_z,
-    use_region, region, scratch, w, ab, tw,
+    use_region, region, scratch, w, ab, tw, semi,
 ):  # fmt: skip
     """The low-speed treatment of one free body (mjrft.lowspeed.treat, compiled).
 
@@ -320,8 +362,9 @@ def _treat_body(
     of the second evaluation (the field's per-element record keeps the pure model). ab (2,):
     set to |xi|^2_M and <d_xi, xi>_M (mjrft.lowspeed.keeps_sense is ab[0] + steps ab[1] > 0)
     when the body is tested. tw (6,): set to the body's twist (v at the CoM, omega; world).
-    jac_step: mjrft.lowspeed.JACOBIAN_STEP, 0 for no implicit step. Returns the decision
-    (mjrft.lowspeed PURE, STICK, SLIP or IMPLICIT).
+    jac_step: mjrft.lowspeed.JACOBIAN_STEP, 0 for no implicit step. semi: positions advance
+    with the step's end velocity (every integrator but RK4; lowspeed.step_work). Returns the
+    decision (mjrft.lowspeed PURE, STICK, SLIP or IMPLICIT).
     """
     if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
         return 0
@@ -370,21 +413,21 @@ def _treat_body(
     dxi += (om_free - om + dom_pure) @ iom
     ab[0] = sq
     ab[1] = dxi
+    twist = np.empty(6)
+    other = np.empty(6)
+    for c in range(3):
+        twist[c] = v[c]
+        twist[3 + c] = om[c]
+        other[c] = mass * gvec[c] + user[c]
+        other[3 + c] = tau[c]
     if sq + reach * dxi > 0.0:
         # Stiff across the motion (mjrft.lowspeed.stiff): (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M.
         wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
         if (reach * dt) ** 2 * wn2 < sq or not jac_step > 0.0:
             return 0
-        twist = np.empty(6)
-        other = np.empty(6)
-        for c in range(3):
-            twist[c] = v[c]
-            twist[3 + c] = om[c]
-            other[c] = mass * gvec[c] + user[c]
-            other[3 + c] = tau[c]
         if _implicit(
             b, cull_row, gint, cent, norm, area, xmat, xpos, xipos, twist, other, mass, iw, ii,
-            dt, jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w,
+            dt, jac_step, co, ay, zeta, surface_z, use_region, region, scratch, w, semi,
         ):  # fmt: skip
             return 3
         # Implicitly the motion would reverse within the step (or gain work): decide below.
@@ -398,13 +441,13 @@ def _treat_body(
         diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
         diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
         if dt * diss < n2:
-            # Power of R over the step on the mean of the start and end twists (lowspeed.treat).
+            # R adds no energy over the step (lowspeed.treat, lowspeed.step_work).
             om_end = om_free + dt * (ii @ rw[3:])
-            power = 0.0
+            end = np.empty(6)
             for c in range(3):
-                power += rw[c] * (v[c] + v_free[c] + dt * rw[c] / mass)
-                power += rw[3 + c] * (om[c] + om_end[c])
-            if power <= 0.0:
+                end[c] = v_free[c] + dt * rw[c] / mass
+                end[3 + c] = om_end[c]
+            if _step_work(rw, twist, end, other, mass, dt, semi) <= 0.0:
                 for c in range(6):
                     w[c] = rw[c]
                 return 2
@@ -414,6 +457,9 @@ def _treat_body(
     for c in range(3):
         w[c] = -mass * v_free[c] / dt
         w[3 + c] = -iomf[c] / dt
+    lam = _stick_fraction(w, twist, other, mass, n2, dt, semi)
+    for c in range(6):
+        w[c] *= lam
     return 1
 
 
@@ -450,6 +496,7 @@ def _treat_all(
     inertia_all = numba.carray(f64_ptr(mdl[M_BODY_INERTIA]), (nbody, 3))
     dsbl = np.int32(par[P_DSBL_GRAVITY])
     jac_step = par[P_JAC_STEP]
+    semi = numba.carray(i32_ptr(mdl[M_INTEGRATOR]), 1)[0] != INT_RK4
     ab = np.zeros(2)
     pure = np.empty(6)
     for k in range(bodies.shape[0]):
@@ -470,7 +517,7 @@ def _treat_all(
             b, cull_row, gint, cent, norm, area, geom_xpos, xmat, xpos, ximat, xipos,
             cvel, subtree_com, user[k], mass_all[b], inertia_all[b], _gravity(mdl, b, dsbl), dt,
             par[P_REACH], jac_step, co, par[P_AY], par[P_ZETA], par[P_SURFACE],
-            par[P_USE_REGION] != 0.0, region, scratch, wrench[b], ab, frozen[k, :6],
+            par[P_USE_REGION] != 0.0, region, scratch, wrench[b], ab, frozen[k, :6], semi,
         )  # fmt: skip
         for c in range(6):  # only a body moved by the implicit step has a record (RK4_FROZEN)
             frozen[k, 6 + c] = wrench[b, c] - pure[c] if d == 3 else 0.0

@@ -561,6 +561,7 @@ class GranularField:
         gravity = np.zeros(3)
         if not m.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
             gravity = np.array(m.opt.gravity)
+        semi = m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4
         for k, be in enumerate(self.bodies):
             b = be.body
             mass, inertia = float(m.body_mass[b]), np.array(m.body_inertia[b])
@@ -587,6 +588,7 @@ class GranularField:
                 other,
                 dt,
                 self.low_speed.reach,
+                semi_implicit=semi,
             )
             self.last_decision[k] = dec
             if dec == lowspeed.IMPLICIT:

@@ -25,14 +25,17 @@ known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
    lowered slowly rocked and tipped over; benchmarks/RESULTS.md, "Rocking"). Such a body gets
    the wrench of one Newton step of backward Euler, ``W(xi) + J d`` (:func:`implicit_wrench`):
    explicit along the motion (J xi = 0), implicit across it. Where that would reverse the
-   motion within the step or do more work than the pure model, step 3 decides instead.
+   motion within the step or gain energy over it, step 3 decides instead.
 3. Otherwise the velocity would pass through zero inside the step. The medium's resistance to
    the free motion, R = W(xi_free), is evaluated; if it can dissipate the free motion's momentum
    within the step, ``-R . xi_free >= <xi_free, xi_free>_M / dt``, the body sticks: the wrench is
-   ``-M xi_free / dt`` (the body ends the step at rest, held like a block by static friction).
+   ``-M xi_free / dt`` (the body ends the step at rest, held like a block by static friction;
+   under RK4, a body rising slowly against gravity gets the largest fraction of it that adds no
+   energy, :func:`stick_fraction`).
    Otherwise it slips and feels R: the force of the direction it is actually moving in at the end
    of the step (backward Euler in the direction, which cannot reverse the motion), provided R
-   does no work over the step, ``R . (xi + xi_end) <= 0`` with ``xi_end = xi_free + dt M^-1 R``.
+   adds no energy over the step: ``R . (xi + xi_end) <= 0`` with ``xi_end = xi_free + dt M^-1 R``
+   (the trapezoid; MuJoCo's Euler adds a term of its own, :func:`step_work`).
    R opposes xi_free, but when the other forces turn the motion (a spinning body thrown in) it
    can push along xi; then the body keeps the pure model if that does not reverse its motion
    within this step (reach 1), and sticks otherwise.
@@ -89,6 +92,8 @@ PURE, STICK, SLIP, IMPLICIT = 0, 1, 2, 3
 #: where it turns from trailing to leading, so the tangent of the summed force is noisy; 0.1
 #: and 0.01 give transverse eigenvalues within 7 % of each other on the mole-crab ellipsoid.
 JACOBIAN_STEP = 0.1
+#: Relative size below which an energy balance counts as zero (its terms cancel; ~300 eps).
+ROUNDING = 64.0 * np.finfo(float).eps
 
 
 @dataclass(frozen=True)
@@ -195,6 +200,37 @@ def transverse_basis(twist: np.ndarray, mass: float, inertia: np.ndarray) -> np.
     return np.array(basis[1:])
 
 
+def step_work(
+    w: np.ndarray,
+    twist: np.ndarray,
+    end: np.ndarray,
+    other: np.ndarray,
+    mass: float,
+    dt: float,
+    semi_implicit: bool,
+) -> float:
+    """2 / dt times the mechanical energy a step gains with the medium's wrench w (a guard).
+
+    The trapezoid ``w . (xi + xi_end)``: over a step with constant forces the kinetic energy
+    changes by ``dt/2 (w + other) . (xi + xi_end)``, and RK4 moves the body along that mean
+    twist, so the work of the other forces cancels with their potential. MuJoCo's Euler,
+    implicit and implicitfast (``semi_implicit``) move it with the end twist instead
+    (semi-implicit Euler), so a constant force F_c (gravity, the user's force) does
+    ``dt F_c . v_end`` of work while the kinetic energy counts ``dt/2 F_c . (v + v_end)``:
+    the balance gains ``-dt^2/(2m) F_c . (F_c + f)``, f the medium's force. That is positive
+    when the medium decelerates a sinking body (F_c down, F_c + f up) and is the gain the
+    slow-lowering map flagged (benchmarks/RESULTS.md, "Euler's energy balance and RK4's
+    stick"); the rotation has no potential and keeps the trapezoid. Arguments: (6,) wrench,
+    start and end twists and the other wrenches, world frame, as in :func:`treat`; mass [kg];
+    dt [s].
+    """
+    p = float(np.asarray(w, dtype=float) @ (np.asarray(twist) + np.asarray(end)))
+    if semi_implicit:
+        fc = np.asarray(other, dtype=float)[:3]
+        p -= dt * float(fc @ (fc + np.asarray(w, dtype=float)[:3])) / mass
+    return p
+
+
 def implicit_wrench(
     pure: np.ndarray,
     wrench_at: Callable[[np.ndarray], np.ndarray],
@@ -203,6 +239,7 @@ def implicit_wrench(
     inertia: np.ndarray,
     other: np.ndarray,
     dt: float,
+    semi_implicit: bool = False,
 ) -> np.ndarray | None:
     """The medium's wrench of a linearly implicit (one Newton step of backward Euler), or None.
 
@@ -214,8 +251,8 @@ def implicit_wrench(
     Along the motion this is the explicit step (stopping is the stick's job); across it, the
     step is backward Euler, which damps the stiff transverse modes instead of amplifying them.
     None (the treatment's step 3 decides) if the result is not finite, reverses the motion
-    within the step, or does positive work over the step (trapezoid of the power). Arguments
-    as in :func:`treat` (world frame; wrenches about the CoM).
+    within the step, or gains energy over the step (:func:`step_work`). Arguments as in
+    :func:`treat` (world frame; wrenches about the CoM).
     """
     twist = np.asarray(twist, dtype=float)
     pure = np.asarray(pure, dtype=float)
@@ -242,7 +279,7 @@ def implicit_wrench(
     end = twist + np.linalg.solve(mm, dt * (other + f))
     if float(end @ mm @ twist) <= 0.0:
         return None
-    if float(f @ (twist + end)) > 0.0:
+    if step_work(f, twist, end, other, mass, dt, semi_implicit) > 0.0:
         return None
     return f
 
@@ -257,6 +294,7 @@ def treat(
     dt: float,
     reach: float = DEFAULT_REACH,
     implicit: bool = True,
+    semi_implicit: bool = False,
 ) -> tuple[np.ndarray, int]:
     """The wrench the medium applies to one free rigid body over a step, and the decision.
 
@@ -271,6 +309,9 @@ def treat(
         step, which rocks a slowly sinking body (benchmarks/RESULTS.md, "Rocking"). The field
         always passes True; under RK4 its later stages keep the first stage's twist and
         implicit correction (mjrft._native.rk4_hold).
+      semi_implicit: True where positions advance with the step's end velocity (MuJoCo's
+        Euler, implicit, implicitfast), False for RK4: the energy balance the implicit and
+        slip guards use (:func:`step_work`). The field passes the model's integrator.
     Returns:
       (wrench (6,), decision): decision is PURE, STICK, SLIP or IMPLICIT.
     """
@@ -285,7 +326,7 @@ def treat(
     if keeps_sense(pure, twist, mass, inertia, other, dt, reach):
         if not (implicit and stiff(pure, twist, mass, inertia, dt, reach)):
             return pure.copy(), PURE
-        f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt)
+        f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt, semi_implicit)
         if f is not None:
             return f, IMPLICIT
         # Implicitly the motion would reverse within the step (or gain work): step 3 decides.
@@ -293,12 +334,51 @@ def treat(
     if n2 > 0.0:
         r = np.asarray(wrench_at(v_free), dtype=float)
         if dt * -float(r @ v_free) < n2:
-            # Slip only where R does no positive work over the step (on the mean of the start
-            # and end twists, the trapezoid of the power); else the pure model where it keeps
-            # the motion's sense within this step, else stick.
-            if float(r @ (twist + v_free + dt * m_inv(r))) <= 0.0:
+            # Slip only where R adds no energy over the step (step_work: the trapezoid of the
+            # power, plus semi-implicit Euler's term); else the pure model where it keeps the
+            # motion's sense within this step, else stick.
+            end = v_free + dt * m_inv(r)
+            if step_work(r, twist, end, other, mass, dt, semi_implicit) <= 0.0:
                 return r, SLIP
             if keeps_sense(pure, twist, mass, inertia, other, dt, 1.0):
                 return pure.copy(), PURE
     stick = np.concatenate([-mass * v_free[:3], -(inertia @ v_free[3:])]) / dt
-    return stick, STICK
+    return stick * stick_fraction(stick, twist, other, mass, n2, dt, semi_implicit), STICK
+
+
+def stick_fraction(
+    stick: np.ndarray,
+    twist: np.ndarray,
+    other: np.ndarray,
+    mass: float,
+    n2: float,
+    dt: float,
+    semi_implicit: bool,
+) -> float:
+    """The largest fraction lam in [0, 1] of the stick wrench that adds no energy over the step.
+
+    The full stick (lam = 1) ends the step at rest. Under RK4 the body still moves by dt xi / 2
+    over the step, so a body rising slowly against gravity (|v| < g dt) gains more potential
+    energy than the kinetic energy the stick takes (the RK4 flags of the slow lowering;
+    benchmarks/RESULTS.md, "Euler's energy balance and RK4's stick"). The wrench lam S ends at
+    (1 - lam) xi_free and its :func:`step_work` is the quadratic ``(n2/dt) lam^2 + B lam + C``
+    with C <= 0, so the largest root is the answer when lam = 1 would gain; with RK4 it is
+    ``1 - dt (S . xi) / n2``.
+    Under Euler a passive body's stick never gains (its position does not move). Arguments:
+    stick (6,) = -M xi_free / dt, twist (6,), other (6,), world frame as in :func:`treat`;
+    n2 = |xi_free|^2_M [kg m^2/s^2] (twice a kinetic energy); mass [kg]; dt [s].
+    """
+    fc = np.asarray(other, dtype=float)[:3] if semi_implicit else np.zeros(3)
+    # Rounding: Euler's balance of a passive stick is exactly -|xi|^2_M / dt <= 0, but its terms
+    # cancel; at rest it rounds to +1e-22 and a fraction 1 - 1e-16 would leave the body creeping.
+    size = float(
+        np.abs(stick) @ np.abs(twist) + dt * np.abs(fc) @ (np.abs(fc) + np.abs(stick[:3])) / mass
+    )
+    if step_work(stick, twist, np.zeros(6), other, mass, dt, semi_implicit) <= ROUNDING * size:
+        return 1.0
+    a2 = n2 / dt
+    b1 = float(stick @ twist) - a2 - dt * float(fc @ stick[:3]) / mass
+    c0 = -dt * float(fc @ fc) / mass
+    root = math.sqrt(b1 * b1 - 4.0 * a2 * c0)
+    lam = -2.0 * c0 / (b1 + root) if b1 > 0.0 else (root - b1) / (2.0 * a2)
+    return min(max(lam, 0.0), 1.0)

@@ -427,12 +427,13 @@ def test_rk4_holds_a_body_at_rest_over_the_step():
 
 
 def test_rk4_stage_constant_matches_mujoco():
-    from mjrft import _native, field
+    from mjrft import _native, field, lowspeed
 
     assert _native.INT_RK4 == int(mujoco.mjtIntegrator.mjINT_RK4)
     # the Python path's copy of the stage record layout
     assert (field._RK4_HEAD, field._RK4_BODY) == (_native.RK4_HEAD, _native.RK4_BODY)
     assert (field._RK4_HOLD, field._RK4_FROZEN) == (_native.RK4_HOLD, _native.RK4_FROZEN)
+    assert _native.ROUNDING == lowspeed.ROUNDING  # the energy guards' rounding, both paths
 
 
 def test_rk4_hold_recognises_only_the_stage_pattern():
