@@ -66,20 +66,25 @@ DEFAULT_N_TRIANGLES = 1000
 """Target triangle count used when neither ``n_triangles`` nor ``max_edge`` is given."""
 
 MIN_TRIANGLES = 12
-"""No primitive has fewer triangles (sphere/ellipsoid/box/cylinder minimum: one lattice cell per
-axis; capsule 28, paraboloid 32). Smaller n_triangles requests give the shape's minimum."""
+"""No primitive has fewer triangles (box: one lattice cell per axis, 12; sphere, ellipsoid and
+cylinder: two, so a lattice line runs along each mid-plane, 48; paraboloid 32; capsule 80).
+Smaller n_triangles requests give the shape's minimum."""
 
 MAX_TRIANGLES = 2_000_000
 """Refuse resolutions above this (memory: ~0.5 GB of element arrays and temporaries)."""
 
 PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 
-#: Accuracy knob: triangles = max(TOLERANCE_FLOOR, ceil((TOLERANCE_C / tol) ** 2)) for a relative
-#: RMS force tolerance tol. Fitted in benchmarks/pareto.py (benchmarks/RESULTS.md, "Speed vs
-#: accuracy"): the slowest-converging measured cases (a sphere pushed straight down, error
-#: 0.84 n^-0.61; the pitching ellipsoid and root tip converge faster) bounded by 0.8 n^-1/2, and
-#: checked on shapes not used in the fit (capsule, cylinder, box, a 5 x 10 x 30 mm ellipsoid).
-TOLERANCE_C = 0.8
+#: Accuracy knob: n = max(TOLERANCE_FLOOR, ceil((TOLERANCE_C / tol) ** (1 / TOLERANCE_P)))
+#: triangles for a relative RMS force tolerance tol. Fitted in benchmarks/pareto.py
+#: (benchmarks/RESULTS.md, "Speed vs accuracy"): errors of a sphere (spinning and straight
+#: down), the pitching ellipsoid (pitching and not) and the root tip converge as C n^-p with
+#: p >= 0.85; the rule takes p = 0.8 and C = 3x their envelope (slender shapes converge with
+#: larger C), checked on shapes not used in the fit (capsules, cylinders, a box, slender and
+#: flat ellipsoids). The old rule 0.8 n^-1/2 (6400 triangles at 1 %) was forced by first-order
+#: errors of lattices that cut a mid-plane, gone since the counts across mid-planes are even.
+TOLERANCE_C = 5.2
+TOLERANCE_P = 0.8
 TOLERANCE_FLOOR = 200
 
 
@@ -96,11 +101,12 @@ def triangles_for_tolerance(tol: float) -> int:
         raise ValueError(f"tolerance must be a number in (0, 1), got {tol!r}") from None
     if not (0.0 < t < 1.0):
         raise ValueError(f"tolerance must be in (0, 1) (a relative force error), got {tol!r}")
-    n = max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** 2))
+    n = max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** (1.0 / TOLERANCE_P)))
     if n > MAX_TRIANGLES:
         raise ValueError(
             f"tolerance {t:g} needs {n} triangles, more than MAX_TRIANGLES = {MAX_TRIANGLES}; "
-            f"the smallest supported tolerance is {TOLERANCE_C / math.sqrt(MAX_TRIANGLES):.2g}"
+            "the smallest supported tolerance is "
+            f"{TOLERANCE_C / MAX_TRIANGLES**TOLERANCE_P:.2g}"
         )
     return n
 
@@ -256,19 +262,47 @@ def _curved_cells(s: float, length: float, phase: float) -> int:
     return max(_cells(s, length, phase), boosted)
 
 
+def _even_curved_cells(s: float, length: float, phase: float) -> int:
+    """_curved_cells rounded up to even (see _Family.even)."""
+    return _even(_curved_cells(s, length, phase))
+
+
 Counts = tuple[int, ...]
 _CountsFn = Callable[[float], Counts]  # density [cells/m] -> shape-specific cell counts
 _LatticeFn = Callable[[Counts], Dims]  # cell counts -> lattice dims
 _MapFn = Callable[[np.ndarray, Counts], np.ndarray]  # (P, 3) lattice indices -> (P, 3) points
 
 
+def _even(count: int) -> int:
+    """count rounded up to even: a lattice line then runs along the span's middle."""
+    return count + (count & 1)
+
+
+def _all_even(counts: Counts) -> bool:
+    return all(c % 2 == 0 for c in counts)
+
+
 class _Family:
-    """A one-parameter family of lattice meshes of one shape, indexed by density s [cells/m]."""
+    """A one-parameter family of lattice meshes of one shape, indexed by density s [cells/m].
+
+    allowed(counts): which counts the resolution search may use (default: all). Curved shapes
+    keep the counts across their mid-planes even, so a lattice line runs along each mid-plane: a
+    translation along a principal axis then has its leading boundary (and a level waterline its
+    wet boundary) along lattice lines instead of cutting a row of facets, whose all-or-nothing
+    decision is a first-order error, 3-15x larger at the same triangle count
+    (benchmarks/RESULTS.md, "Speed vs accuracy", parity table).
+    """
 
     def __init__(
-        self, shape: str, counts_fn: _CountsFn, lattice_fn: _LatticeFn, map_fn: _MapFn
+        self,
+        shape: str,
+        counts_fn: _CountsFn,
+        lattice_fn: _LatticeFn,
+        map_fn: _MapFn,
+        allowed: Callable[[Counts], bool] | None = None,
     ) -> None:
         self.shape, self.counts, self.lattice, self._map = shape, counts_fn, lattice_fn, map_fn
+        self.allowed = allowed if allowed is not None else (lambda counts: True)
 
     def n_triangles(self, counts: Counts) -> int:
         return _lattice_triangles(self.lattice(counts))
@@ -322,12 +356,18 @@ def _counts_for_n_triangles(family: _Family, target: int) -> Counts:
     if error(best) <= _COUNT_SLACK:
         return best
     # The family jumps too far here (one count going 1 -> 2 doubles the total): re-balance one
-    # count of either neighbour, within a factor 2 of its value, to land closer to the target.
+    # count of either neighbour, within a factor 2 of its value (small counts up to 8), to land
+    # closer to the target. Among those within the slack, the one whose coarsest count is the
+    # finest wins (e.g. a slender capsule: more cells around rather than along).
     candidates = [best]
     for base in (below, above):
         for i, c in enumerate(base):
-            for c_new in range(max(1, c // 2), 2 * c + 2):
+            for c_new in range(max(1, c // 2), max(2 * c + 2, 9)):
                 candidates.append((*base[:i], c_new, *base[i + 1 :]))
+    candidates = [c for c in candidates if family.allowed(c)]
+    close = [c for c in candidates if error(c) <= _COUNT_SLACK]
+    if close:
+        return max(close, key=lambda c: (min(c), -error(c)))
     return min(candidates, key=error)
 
 
@@ -448,13 +488,13 @@ def ellipsoid(
 def _ellipsoid_impl(
     shape: str, axes: np.ndarray, n_triangles: object, max_edge: object
 ) -> ElementSet:
-    counts_fn = _per_axis_counts(_cube_sphere_spans(axes), _curved_cells)
+    counts_fn = _per_axis_counts(_cube_sphere_spans(axes), _even_curved_cells)
 
     def map_fn(ijk: np.ndarray, counts: Counts) -> np.ndarray:
         u = _unit(ijk, _as_dims(counts))
         return _cube_sphere_dirs(u[:, 0], u[:, 1], u[:, 2]) * axes
 
-    family = _Family(shape, counts_fn, _as_dims, map_fn)
+    family = _Family(shape, counts_fn, _as_dims, map_fn, _all_even)
     return _build(family, n_triangles, max_edge)
 
 
@@ -539,8 +579,8 @@ def cylinder(
     h = _positive("half_length", half_length)
     quarter = 0.5 * math.pi * r  # quarter circumference: one lattice side face
 
-    def counts_fn(s: float) -> Counts:  # (azimuth cells per quarter turn, axial cells)
-        return (_curved_cells(s, quarter, _PHASES[0]), _cells(s, 2.0 * h, _PHASES[1]))
+    def counts_fn(s: float) -> Counts:  # (azimuth cells per quarter turn, axial cells), even
+        return (_even_curved_cells(s, quarter, _PHASES[0]), _even(_cells(s, 2.0 * h, _PHASES[1])))
 
     def lattice_fn(counts: Counts) -> Dims:
         n, m = counts
@@ -551,7 +591,8 @@ def cylinder(
         xy = r * _concentric(u[:, 0], u[:, 1])
         return np.column_stack([xy, h * u[:, 2]])
 
-    return _build(_Family("cylinder", counts_fn, lattice_fn, map_fn), n_triangles, max_edge)
+    family = _Family("cylinder", counts_fn, lattice_fn, map_fn, _all_even)
+    return _build(family, n_triangles, max_edge)
 
 
 def capsule(
@@ -578,9 +619,10 @@ def capsule(
 
     def counts_fn(s: float) -> Counts:
         # (azimuth cells per quarter turn, hemisphere band cells from the equator to the cube
-        # edge at ~45 deg latitude: half the cube face, tube cells)
-        n = _curved_cells(s, quarter, _PHASES[0])
-        return (n, (n + 1) // 2, _cells(s, 2.0 * h, _PHASES[1]))
+        # edge at ~45 deg latitude: half the cube face, tube cells); azimuth and tube even, so
+        # lattice lines run along the x, y and z mid-planes (_Family.even)
+        n = _even_curved_cells(s, quarter, _PHASES[0])
+        return (n, n // 2, _even(_cells(s, 2.0 * h, _PHASES[1])))
 
     def lattice_fn(counts: Counts) -> Dims:
         n, band, tube = counts
@@ -604,7 +646,12 @@ def capsule(
         out[in_tube, 2] = -h + 2.0 * h * (k[in_tube] - band) / tube
         return out
 
-    return _build(_Family("capsule", counts_fn, lattice_fn, map_fn), n_triangles, max_edge)
+    def allowed(counts: Counts) -> bool:  # even azimuth and tube; bands follow the azimuth
+        n, band, tube = counts
+        return n % 2 == 0 and tube % 2 == 0 and band == n // 2
+
+    family = _Family("capsule", counts_fn, lattice_fn, map_fn, allowed)
+    return _build(family, n_triangles, max_edge)
 
 
 def paraboloid(

@@ -4,11 +4,11 @@ Observed convergence orders (fit of log relative error vs log n_triangles, n ~ 2
 printed by test_convergence_order with ``pytest -s``): error ~ n^p with
 
     shape        area p   volume p
-    sphere       -1.00    -1.00
+    sphere       -1.02    -1.01
     ellipsoid    -0.99    -0.99
-    capsule      -0.92    -0.93
-    cylinder     -0.99    -0.98
-    paraboloid   -0.98    -0.98
+    capsule      -0.86    -0.86   (even azimuth counts: coarse steps at low counts)
+    cylinder     -0.96    -0.95
+    paraboloid   -1.01    -1.02
 
 i.e. O(h^2) in the edge length h ~ n^-1/2, as expected for polyhedra inscribed in smooth surfaces.
 """
@@ -28,8 +28,10 @@ from mjrft.geometry import MeshWarning
 # Float64 round-off on O(1)-scaled sums of up to ~1e4 terms, with headroom.
 EXACT = 1e-12
 # Convergence order: theory says p = -1 (O(h^2)); the triangle count moves in discrete, slightly
-# uneven steps between resolutions, which jitters the fitted slope by a few hundredths.
+# uneven steps between resolutions (coarser since the mid-plane counts are kept even), which
+# jitters the fitted slope: fitted over 13 targets a factor sqrt(2) apart to average that out.
 SLOPE_TOL = 0.15
+CONVERGENCE_TARGETS = np.round(250 * 2 ** np.arange(0.0, 6.01, 0.5)).astype(int)  # 250..16000
 # n_triangles is honoured to within this fraction for targets >= 50 (step granularity of the
 # structured lattices; measured worst case ~20 % over many shapes and aspect ratios).
 COUNT_TOL = 0.25
@@ -216,13 +218,14 @@ def test_convergence_order(name):
     factory, _, _, volume = CURVED[name]
     area = exact_area(name)
     counts, err_area, err_vol = [], [], []
-    for n in (250, 1000, 4000, 16000):
-        es = factory(n_triangles=n)
+    for n in CONVERGENCE_TARGETS:
+        es = factory(n_triangles=int(n))
         counts.append(len(es))
         err_area.append(abs(es.total_area / area - 1.0))
         err_vol.append(abs(es.volume / volume - 1.0))
-    # Inscribed polyhedra: errors shrink monotonically.
-    assert np.all(np.diff(err_area) < 0) and np.all(np.diff(err_vol) < 0)
+    # Inscribed polyhedra: errors shrink monotonically (between targets 4x apart; between
+    # neighbours a step may refine only a flat span, e.g. a capsule's tube).
+    assert np.all(np.diff(err_area[::4]) < 0) and np.all(np.diff(err_vol[::4]) < 0)
     slope_area = np.polyfit(np.log(counts), np.log(err_area), 1)[0]
     slope_vol = np.polyfit(np.log(counts), np.log(err_vol), 1)[0]
     print(f"{name}: area error ~ n^{slope_area:.3f}, volume error ~ n^{slope_vol:.3f}")
@@ -251,7 +254,7 @@ def test_minimum_and_default_resolution(name):
     factory, _ = SHAPES[name]
     smallest = factory(n_triangles=1)
     assert len(smallest) >= geometry.MIN_TRIANGLES
-    assert len(smallest) <= 32
+    assert len(smallest) <= 80  # capsule: 2 azimuth cells per quarter turn, 2 tube cells
     assert len(factory(n_triangles=1.0)) == len(smallest)  # integral float accepted
     default = len(factory())
     assert abs(default / geometry.DEFAULT_N_TRIANGLES - 1.0) <= COUNT_TOL

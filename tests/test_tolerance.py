@@ -35,11 +35,16 @@ def relative_rms_error(force, ref):
 
 
 # Shapes not used to fit the rule (it was fitted on a sphere, the pitching ellipsoid, the root).
+# Its margin was raised after a margin of 2 failed here (slender ellipsoid at 3 %, long capsule
+# at 1 %: 3.03 %, 1.03 %); the disc cylinder was added after that choice (benchmarks/pareto.py).
 HELD_OUT = {
     "capsule": ("capsule", [0.006, 0.012]),
     "cylinder": ("cylinder", [0.008, 0.01]),
     "box": ("box", [0.012, 0.008, 0.005]),
     "slender ellipsoid": ("ellipsoid", [0.005, 0.010, 0.030]),
+    "pancake ellipsoid": ("ellipsoid", [0.030, 0.020, 0.006]),
+    "long capsule": ("capsule", [0.003, 0.025]),
+    "disc cylinder": ("cylinder", [0.015, 0.002]),
 }
 
 
@@ -59,7 +64,7 @@ def test_requested_tolerance_is_met_on_held_out_shapes(name, tol):
 
 def test_rule_values_and_errors():
     assert geometry.triangles_for_tolerance(0.1) == geometry.TOLERANCE_FLOOR
-    assert geometry.triangles_for_tolerance(0.01) == 6400  # (0.8 / 0.01)^2
+    assert geometry.triangles_for_tolerance(0.01) == 2484  # ceil((5.2 / 0.01)^(1 / 0.8))
     for bad in (0.0, 1.0, -0.1, float("nan"), "x"):
         with pytest.raises(ValueError, match="tolerance"):
             geometry.triangles_for_tolerance(bad)
@@ -83,14 +88,14 @@ def field_for(extra="", prm_a="0", **kw):
 def test_tolerance_in_mjcf_and_python():
     per_geom = field_for(prm_a="0.03")
     counts = {i.name: (i.n_triangles, i.tolerance) for i in per_geom.scene.intruders}
-    assert counts["a"] == (712, 0.03)
+    assert counts["a"] == (629, 0.03)  # ceil((5.2 / 0.03)^1.25)
     assert counts["b"] == (geometry.DEFAULT_N_TRIANGLES, None)
     model_wide = field_for('<numeric name="mjrft:tolerance" data="0.01"/>')
-    assert all(i.n_triangles == 6400 for i in model_wide.scene.intruders)
+    assert all(i.n_triangles == 2484 for i in model_wide.scene.intruders)
     python = field_for(tolerance=0.1)
     assert all(i.n_triangles == 200 for i in python.scene.intruders)
     # The meshed sphere's size follows: within ~25% of the requested count.
-    assert 0.75 * 6400 < len(model_wide.geom_elements[0]) < 1.25 * 6400
+    assert 0.75 * 2484 < len(model_wide.geom_elements[0]) < 1.25 * 2484
 
 
 @pytest.mark.parametrize(

@@ -403,7 +403,7 @@ def test_recorder_rejects_bad_options(tmp_path):
 
 
 def test_default_ellipsoid_recording_stays_under_50_mb_for_10_s(tmp_path):
-    """One simulated second at the defaults (full 3936 triangles), extrapolated to 10 s."""
+    """One simulated second at the defaults (full 4096 triangles), extrapolated to 10 s."""
     model = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
     path = tmp_path / "one_second.rrd"
     viz.record(model, 1.0, path, record_every=10)
