@@ -233,6 +233,10 @@ class GranularField:
         ``mjrft:stick_reach``.
     Raises:
       mjrft.scene.SceneError (a ValueError) naming the geom or field at fault.
+
+    One field keeps per-pass state (``last_wrench``, element forces, work arrays), so step the
+    MjData of an installed field from one thread at a time; for many copies in parallel use
+    ``mjrft.batch.BatchedField``.
     """
 
     def __init__(
@@ -366,6 +370,11 @@ class GranularField:
         t[nt.F_DECISION] = self.last_decision.ctypes.data
         self._n_scratch = np.zeros((max(len(self._n_area), 1), 3))
         t[nt.F_SCRATCH] = self._n_scratch.ctypes.data
+        n_bt = len(self.body_ids)
+        self._n_work = np.zeros(2 * self.model.nbody + len(rows) + n_bt, dtype=np.int64)
+        t[nt.F_WORK] = self._n_work.ctypes.data
+        self._n_frozen = np.zeros((max(n_bt, 1), 12))
+        t[nt.F_FROZEN] = self._n_frozen.ctypes.data
         return t
 
     @property

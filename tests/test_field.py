@@ -426,6 +426,38 @@ def test_rk4_holds_a_body_at_rest_over_the_step():
         assert fld.stats["calls"] == calls + 5
 
 
+def test_interleaved_mjdata_of_one_field_step_as_if_alone():
+    """The native pass keeps its per-pass work arrays (hold and freeze flags, culling rows, RK4
+    records) on the field, not per MjData: stepping two MjData in turn must give bit for bit
+    what each gives stepped alone, including a body the treatment holds at rest under RK4."""
+    m = ball_model(option='integrator="RK4"')
+    fld = GranularField(m)
+    steps = 320  # the resting ball is held from ~step 250 on (previous test)
+
+    def fresh(moving):
+        d = mujoco.MjData(m)
+        if moving:
+            set_motion(d)
+        return d
+
+    alone = []
+    for moving in (False, True):
+        d = fresh(moving)
+        with fld.installed():
+            for _ in range(steps):
+                mujoco.mj_step(m, d)
+        alone.append((d.qpos.copy(), d.qvel.copy()))
+    pair = [fresh(False), fresh(True)]
+    with fld.installed():
+        for _ in range(steps):
+            for d in pair:
+                mujoco.mj_step(m, d)
+    assert fld.stats["stuck"] > 0  # the hold (RK4_HOLD records) was exercised
+    for d, (qpos, qvel) in zip(pair, alone, strict=True):
+        np.testing.assert_array_equal(d.qpos, qpos)
+        np.testing.assert_array_equal(d.qvel, qvel)
+
+
 def test_rk4_stage_constant_matches_mujoco():
     from mjrft import _native, field, lowspeed
 
