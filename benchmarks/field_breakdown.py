@@ -30,8 +30,10 @@ import numba
 import numpy as np
 from field_overhead import MODELS, OUT, state_at, time_pairs
 
-from mjrft import _kernel, _native, simulate
+from mjrft import simulate
+from mjrft.core import kernel as _kernel
 from mjrft.field import GranularField
+from mjrft.field import native as _native
 
 REPEATS = 9
 CALLS = 2000

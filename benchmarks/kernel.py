@@ -23,8 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from numpy_baseline import baseline_forces
 
 import mjrft
-from mjrft import _kernel
-from mjrft.rft import _unit_rows, numpy_forces
+from mjrft.core import kernel as _kernel
+from mjrft.core.rft import _unit_rows, numpy_forces
 
 OUT = Path(__file__).resolve().parent / "results"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjrft.material import HARMONICS, Material
+from mjrft.core.material import HARMONICS, Material
 
 
 def baseline_forces(pos, normal, area, vel, material: Material, surface_z=0.0) -> np.ndarray:

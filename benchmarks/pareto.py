@@ -52,12 +52,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from mjrft import _kernel, demos, geometry, simulate
+from mjrft import geometry, simulate
+from mjrft.app import demos
 from mjrft.body import trajectory_wrenches
-from mjrft.elements import ElementSet
+from mjrft.core import kernel as _kernel
+from mjrft.core.elements import ElementSet
+from mjrft.core.material import Material
+from mjrft.core.units import MM
 from mjrft.field import GranularField
-from mjrft.material import Material
-from mjrft.units import MM
 
 OUT = Path(__file__).resolve().parent / "results"
 MODELS = Path(__file__).resolve().parents[1] / "models"

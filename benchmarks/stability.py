@@ -61,7 +61,7 @@ from scipy.optimize import brentq
 
 from mjrft import GranularField
 from mjrft.body import body_wrench, quat_to_mat, trajectory_wrenches
-from mjrft.elements import ElementSet
+from mjrft.core.elements import ElementSet
 
 # --------------------------------------------------------------------------- sweep definition
 

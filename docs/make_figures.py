@@ -16,7 +16,8 @@ DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from mjrft import report, simulate  # noqa: E402
+from mjrft import simulate
+from mjrft.app import report  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
 
 #: Triangles per primitive intruder (mesh intruders keep their own).

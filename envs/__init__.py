@@ -1,8 +1,8 @@
-"""dm_control environments on the mjrft granular force field.
+"""dm_control environments on the mjrft granular force field (installed as ``mjrft.envs``).
 
 ::
 
-    import envs
+    from mjrft import envs
     env = envs.load("hexapod_sand", seed=0)          # a dm_control.rl.control.Environment
     ts = env.reset()
     ts = env.step([1.0, 3.14159])                     # 1 Hz alternating tripod
@@ -11,7 +11,10 @@
 ``envs.NAMES`` lists the environments; each module's docstring gives its actions, observations
 and reward (SI units). The granular RFT field acts inside every physics substep (the physics is
 an ``envs.physics.GranularPhysics``: the field stays installed for its lifetime).
-``envs.gym.GymnasiumEnv`` wraps any of them as a ``gymnasium.Env`` (optional dependency).
+``envs.gym_wrapper.GymnasiumEnv`` wraps any of them as a ``gymnasium.Env`` (optional
+dependency); with gymnasium installed, importing this package registers them as
+``mjrft/<name>-v0``: ``gymnasium.make("mjrft/hexapod_sand-v0")`` after ``import mjrft.envs``, or
+``gymnasium.make("mjrft.envs:mjrft/hexapod_sand-v0")`` without.
 """
 
 from __future__ import annotations
@@ -19,9 +22,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from envs import ellipsoid_burrow, hexapod_sand, root_probe
-from envs.base import GranularEnvironment
-from envs.physics import GranularPhysics
+from . import ellipsoid_burrow, hexapod_sand, root_probe
+from .base import GranularEnvironment
+from .physics import GranularPhysics
 
 _MAKERS: dict[str, Callable[..., GranularEnvironment]] = {
     "ellipsoid_burrow": ellipsoid_burrow.make,
@@ -32,7 +35,10 @@ _MAKERS: dict[str, Callable[..., GranularEnvironment]] = {
 #: Names accepted by :func:`load`.
 NAMES: tuple[str, ...] = tuple(_MAKERS)
 
-__all__ = ["NAMES", "GranularEnvironment", "GranularPhysics", "load"]
+#: gymnasium ids registered for NAMES (when gymnasium is installed).
+GYMNASIUM_IDS: dict[str, str] = {name: f"mjrft/{name}-v0" for name in NAMES}
+
+__all__ = ["GYMNASIUM_IDS", "NAMES", "GranularEnvironment", "GranularPhysics", "load"]
 
 
 def load(name: str, **kwargs: Any) -> GranularEnvironment:
@@ -47,3 +53,19 @@ def load(name: str, **kwargs: Any) -> GranularEnvironment:
     except KeyError:
         raise ValueError(f"unknown environment {name!r}; valid: {', '.join(NAMES)}") from None
     return maker(**kwargs)
+
+
+def _register_gymnasium() -> None:
+    """Register every environment with gymnasium's registry, if gymnasium is installed."""
+    try:
+        import gymnasium
+    except ImportError:
+        return
+    for name, env_id in GYMNASIUM_IDS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(
+                id=env_id, entry_point=f"{__name__}.gym_wrapper:GymnasiumEnv", kwargs={"env": name}
+            )
+
+
+_register_gymnasium()

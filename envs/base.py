@@ -16,7 +16,7 @@ import numpy as np
 from dm_control.rl import control
 from dm_control.suite import base
 
-from envs.physics import GranularPhysics
+from .physics import GranularPhysics
 
 #: Work floor W0 [J] added to the work of a control step in depth-per-work rewards, so a step
 #: with (almost) no work (e.g. everything at rest) gives a bounded reward.

@@ -40,9 +40,10 @@ import mujoco
 import numpy as np
 from dm_env import specs
 
-from envs.base import DepthPerWorkTask, make_environment, models_dir, resolve_random
-from envs.physics import GranularPhysics
 from mjrft import Material
+
+from .base import DepthPerWorkTask, make_environment, models_dir, resolve_random
+from .physics import GranularPhysics
 
 MAX_CRANK_SPEED = 4 * math.pi  # rad/s: 2 Hz pitch
 DEFAULT_MAX_THRUST = 5.0  # N

@@ -21,7 +21,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-import envs
+from . import load
 
 
 class GymnasiumEnv(gymnasium.Env):
@@ -36,7 +36,7 @@ class GymnasiumEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 - gymnasium's convention
 
     def __init__(self, env: Any, render_mode: str | None = None, **kwargs: Any) -> None:
-        self._env = envs.load(env, **kwargs) if isinstance(env, str) else env
+        self._env = load(env, **kwargs) if isinstance(env, str) else env
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode

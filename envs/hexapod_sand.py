@@ -41,15 +41,16 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
-from envs.base import (
+from mjrft import Material
+
+from .base import (
     forward_kinematics,
     lowest_intruder_z,
     make_environment,
     models_dir,
     resolve_random,
 )
-from envs.physics import GranularPhysics
-from mjrft import Material
+from .physics import GranularPhysics
 
 LEGS = ("LF", "LM", "LR", "RF", "RM", "RR")  # actuator / hip order in the MJCF
 TRIPOD_A = (0, 2, 4)  # LF, LR, RM

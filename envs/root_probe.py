@@ -44,9 +44,10 @@ import mujoco
 import numpy as np
 from dm_env import specs
 
-from envs.base import DepthPerWorkTask, make_environment, models_dir, resolve_random
-from envs.physics import GranularPhysics
 from mjrft import Material
+
+from .base import DepthPerWorkTask, make_environment, models_dir, resolve_random
+from .physics import GranularPhysics
 
 TIP_LENGTH = 0.0355  # m, pivot (base centre) to apex (models/root_circumnutation.xml)
 MAX_TILT = 0.5  # rad

@@ -1,15 +1,28 @@
 """mjrft: granular Resistive Force Theory for MuJoCo.
 
-The physics core (materials, kernel, geometry, rigid-body evaluation) imports no mujoco;
-``mjrft.GranularField`` (the MuJoCo field) is loaded on first use.
+Layers (each a subpackage; imports go downwards only):
+
+* ``mjrft.core``: the physics (media, the RFT element law and its kernels, surface elements,
+  rigid bodies); imports no mujoco;
+* ``mjrft.field``: the binding to a compiled MjModel (``GranularField``, batches);
+* ``mjrft.app``: simulation runs, the CLI, reports, rerun recordings, demos;
+* ``mjrft.envs``: dm_control environments (and their gymnasium registration).
+
+``mjrft.GranularField`` is loaded on first use, so ``import mjrft`` does not import mujoco.
 """
 
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-from mjrft.elements import ElementSet
-from mjrft.material import LI_GENERIC, PRESETS, FourierCoefficients, Material
-from mjrft.rft import element_forces
-from mjrft.units import N_PER_CM3
+from mjrft.core.elements import ElementSet
+from mjrft.core.material import LI_GENERIC, PRESETS, FourierCoefficients, Material
+from mjrft.core.rft import element_forces
+from mjrft.core.units import N_PER_CM3
+
+try:
+    __version__ = version("mjrft")
+except PackageNotFoundError:  # imported from a source tree that was never installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "LI_GENERIC",
@@ -19,13 +32,14 @@ __all__ = [
     "FourierCoefficients",
     "GranularField",
     "Material",
+    "__version__",
     "element_forces",
 ]
 
 
 def __getattr__(name: str) -> Any:
     if name == "GranularField":
-        from mjrft.field import GranularField
+        from mjrft.field.granular_field import GranularField
 
         return GranularField
     raise AttributeError(f"module 'mjrft' has no attribute {name!r}")

@@ -27,8 +27,7 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
-from envs import hexapod_sand  # noqa: E402
+from mjrft.envs import hexapod_sand  # noqa: E402
 
 DEFAULT_FREQUENCIES = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0)
 DEFAULT_MATERIALS = ("glass_beads", "poppy_seeds_lp")

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from mjrft.material import HARMONICS, Material
+from mjrft.core.material import HARMONICS, Material
 
 
 def _norm(v):

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 import mjrft
-from mjrft import demos, geometry
+from mjrft import geometry
+from mjrft.app import demos
 from mjrft.body import body_wrench
-from mjrft.material import LI_GENERIC
+from mjrft.core.material import LI_GENERIC
 
 GLASS = mjrft.Material.preset("glass_beads")
 

@@ -8,17 +8,22 @@ import math
 import pickle
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 from dm_env import specs
+from mjrft.envs import hexapod_sand
+from mjrft.envs.physics import GranularPhysics, installed_fields
 
-import envs
-from envs import hexapod_sand
-from envs.physics import GranularPhysics, installed_fields
-from mjrft import GranularField
+from mjrft import GranularField, envs
+
+try:
+    import gymnasium
+except ImportError:  # optional dependency
+    gymnasium = None
 
 ROOT = Path(__file__).resolve().parents[1]
 # Coarser primitive meshes keep the suite fast (the ellipsoid: 1000 instead of 4000 triangles);
@@ -55,17 +60,50 @@ def test_names_and_unknown_name():
         envs.load("nope")
 
 
-@pytest.mark.parametrize("where", ["repository root", "elsewhere (installed)"])
-def test_import_envs_in_a_fresh_interpreter(where, tmp_path):
+@pytest.mark.parametrize(
+    ("where", "module"),
+    [("repository root", "envs"), ("repository root", "mjrft.envs"), ("elsewhere", "mjrft.envs")],
+)
+def test_import_envs_in_a_fresh_interpreter(where, module, tmp_path):
     cwd = ROOT if where == "repository root" else tmp_path
     out = subprocess.run(
-        [sys.executable, "-c", "import envs; print(','.join(envs.NAMES))"],
+        [sys.executable, "-c", f"import {module} as e; print(','.join(e.NAMES))"],
         cwd=cwd,
         capture_output=True,
         text=True,
         check=True,
     )
     assert out.stdout.strip() == ",".join(envs.NAMES)
+
+
+def test_no_top_level_envs_package_is_installed(tmp_path):
+    """Outside the repository `import envs` finds nothing of ours (an RL project's own envs/
+    folder is not shadowed), and the wheel holds only mjrft and its model data."""
+    out = subprocess.run(
+        [sys.executable, "-c", "import envs"], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert out.returncode != 0 and "No module named 'envs'" in out.stderr
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", str(ROOT), "-w", str(tmp_path)],
+        check=True,
+        capture_output=True,
+    )
+    (wheel,) = tmp_path.glob("mjrft-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    top = {n.split("/")[0] for n in names}
+    assert {t for t in top if not t.endswith(".dist-info")} == {"mjrft", "mjrft_models"}
+    assert "mjrft/envs/__init__.py" in names and "mjrft/envs/hexapod_sand.py" in names
+
+
+@pytest.mark.skipif(gymnasium is None, reason="gymnasium not installed")
+def test_environments_are_registered_with_gymnasium():
+    for name in envs.NAMES:
+        spec = gymnasium.spec(f"mjrft/{name}-v0")
+        assert spec.kwargs == {"env": name}
+    env = gymnasium.make("mjrft/hexapod_sand-v0", time_limit=0.2)
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    env.close()
 
 
 # --- the contract, for every environment --------------------------------------------------------
@@ -380,8 +418,7 @@ def test_hexapod_speed_rises_with_leg_frequency_at_low_frequency():
 def test_gymnasium_wrapper():
     gymnasium = pytest.importorskip("gymnasium")
     from gymnasium.utils.env_checker import check_env
-
-    from envs.gym_wrapper import GymnasiumEnv
+    from mjrft.envs.gym_wrapper import GymnasiumEnv
 
     env = GymnasiumEnv("hexapod_sand", time_limit=0.1)
     try:

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import mjrft
-from mjrft import _callback
 from mjrft.body import quat_to_mat
 from mjrft.field import GranularField
-from mjrft.scene import SceneError
+from mjrft.field import guard as _callback
+from mjrft.field.scene import SceneError
 
 GLASS = mjrft.Material.preset("glass_beads")
 # Same physics evaluated in a different order of floating-point operations.
@@ -459,7 +459,9 @@ def test_interleaved_mjdata_of_one_field_step_as_if_alone():
 
 
 def test_rk4_stage_constant_matches_mujoco():
-    from mjrft import _native, field, lowspeed
+    from mjrft.field import granular_field as field
+    from mjrft.field import lowspeed
+    from mjrft.field import native as _native
 
     assert _native.INT_RK4 == int(mujoco.mjtIntegrator.mjINT_RK4)
     # the Python path's copy of the stage record layout
@@ -469,7 +471,7 @@ def test_rk4_stage_constant_matches_mujoco():
 
 
 def test_rk4_hold_recognises_only_the_stage_pattern():
-    from mjrft._native import rk4_hold
+    from mjrft.field.native import rk4_hold
 
     h, t0 = 0.003, 0.7
     rec = np.zeros(2)

@@ -22,7 +22,7 @@ import trimesh
 from scipy import integrate
 
 from mjrft import geometry
-from mjrft.elements import ElementSet
+from mjrft.core.elements import ElementSet
 from mjrft.geometry import MeshWarning
 
 # Float64 round-off on O(1)-scaled sums of up to ~1e4 terms, with headroom.

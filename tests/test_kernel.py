@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import mjrft
-from mjrft import _kernel
+from mjrft.core import kernel as _kernel
+from mjrft.core.rft import _unit_rows, numpy_forces
 from mjrft.field import GranularField
-from mjrft.rft import _unit_rows, numpy_forces
 
 GLASS = mjrft.Material.preset("glass_beads")
 POPPY = mjrft.Material.preset("poppy_seeds_cp")

@@ -12,10 +12,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjrft import _native, lowspeed
 from mjrft.body import trajectory_wrenches
-from mjrft.field import GranularField
-from mjrft.scene import SceneError
+from mjrft.field import GranularField, lowspeed
+from mjrft.field import native as _native
+from mjrft.field.scene import SceneError
 
 DENSITY = 2500.0  # kg/m^3, as the stability map
 # Relative agreement of the compiled treatment with the NumPy reference: both sum the same

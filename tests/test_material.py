@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import mjrft
-from mjrft.material import POPPY_SEEDS_CP_N_PER_CM3, POPPY_SEEDS_LP_N_PER_CM3
+from mjrft.core.material import POPPY_SEEDS_CP_N_PER_CM3, POPPY_SEEDS_LP_N_PER_CM3
 
 
 def test_generic_units():

@@ -37,7 +37,7 @@ def test_core_imports_no_mujoco_rerun_or_plotting():
     import sys
 
     code = (
-        "import sys, mjrft, mjrft.body, mjrft.geometry, mjrft.demos; "
+        "import sys, mjrft, mjrft.core.body, mjrft.geometry, mjrft.app.demos; "
         "bad = [m for m in ('mujoco', 'rerun', 'matplotlib') if m in sys.modules]; "
         "print(bad); sys.exit(1 if bad else 0)"
     )

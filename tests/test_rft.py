@@ -5,7 +5,8 @@ import pytest
 from rft_reference import reference_forces
 
 import mjrft
-from mjrft.rft import HORIZONTAL_PLATE_NZ, element_forces, f1, f23
+from mjrft.core.law import HORIZONTAL_PLATE_NZ, f1, f23
+from mjrft.core.rft import element_forces
 
 GLASS = mjrft.Material.preset("glass_beads")
 ZETA = 0.33 * mjrft.N_PER_CM3

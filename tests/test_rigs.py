@@ -7,7 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjrft import cli, demos, simulate
+from mjrft import simulate
+from mjrft.app import cli, demos
 from mjrft.body import trajectory_wrenches
 from mjrft.field import GranularField
 

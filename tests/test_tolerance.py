@@ -8,7 +8,7 @@ import mjrft
 from mjrft import geometry
 from mjrft.body import trajectory_wrenches
 from mjrft.field import GranularField
-from mjrft.scene import SceneError
+from mjrft.field.scene import SceneError
 
 GLASS = mjrft.Material.preset("glass_beads")
 # Converged reference: benchmarks/pareto.py found 100k-triangle forces within ~1e-4 of 400k.

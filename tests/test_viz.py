@@ -18,9 +18,10 @@ import pytest
 rr = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from mjrft import cli, report, simulate, viz  # noqa: E402
+from mjrft import simulate, viz
+from mjrft.app import cli, report  # noqa: E402
+from mjrft.core.material import Material  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
-from mjrft.material import Material  # noqa: E402
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
 TRIANGLES = 600  # coarse: these tests are about the recording, not resolution
@@ -415,8 +416,8 @@ def test_default_ellipsoid_recording_stays_under_50_mb_for_10_s(tmp_path):
 
 def test_importing_mjrft_does_not_import_rerun():
     code = (
-        "import sys, mjrft, mjrft.field, mjrft.simulate, mjrft.report, mjrft.cli; "
-        "mjrft.cli.build_parser(); print('rerun' in sys.modules); "
+        "import sys, mjrft, mjrft.field, mjrft.simulate, mjrft.app.report, mjrft.app.cli; "
+        "mjrft.app.cli.build_parser(); print('rerun' in sys.modules); "
         "sys.exit(1 if 'rerun' in sys.modules else 0)"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft import geometry
-from mjrft.lowspeed import DEFAULT_REACH, MODES, LowSpeed
-from mjrft.material import PRESETS, FourierCoefficients, Material
+from mjrft.core import geometry
+from mjrft.core.material import PRESETS, FourierCoefficients, Material
+from mjrft.field.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 
 PREFIX = "mjrft:"
 KEYS = {

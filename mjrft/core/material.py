@@ -24,7 +24,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from mjrft.units import N_PER_CM3
+from mjrft.core.units import N_PER_CM3
 
 #: The (m, n) harmonics of Li 2013's first-order Fourier fit, in a fixed order.
 HARMONICS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
@@ -106,6 +106,30 @@ class FourierCoefficients:
         """alpha_x at angles beta, gamma [rad] (broadcast), in the table's units."""
         ph = self._phases(beta, gamma)
         return np.cos(ph) @ self.c + np.sin(ph) @ self.d
+
+
+def combined_coefficients(fourier: FourierCoefficients) -> np.ndarray:
+    """(18,) coefficients of alpha_z then alpha_x as sums over the products the kernel forms.
+
+    alpha = K0 + K1 c2 + K2 s2 + K3 cg + K4 sg + K5 c2 cg + K6 s2 sg + K7 c2 sg + K8 s2 cg, with
+    c2, s2 = cos, sin(2 beta) and cg, sg = cos, sin(gamma); from the 6 harmonics (m, n) of
+    HARMONICS by cos(2 m b + n g) and sin(2 m b + n g) expanded (``mjrft.core.kernel``).
+    """
+
+    def comb(c, s):  # c, s: cosine and sine coefficients over HARMONICS
+        return [
+            c[1],
+            c[0] + c[2],
+            s[2] - s[0],
+            c[4],
+            s[4],
+            c[3] + c[5],
+            c[3] - c[5],
+            s[3] + s[5],
+            s[5] - s[3],
+        ]
+
+    return np.array(comb(fourier.a, fourier.b) + comb(fourier.c, fourier.d), dtype=np.float64)
 
 
 #: Li 2013 generic coefficients (dimensionless; alpha_z(0, pi/2) = 1), Science 339:1408, Fig. 2.
@@ -300,8 +324,6 @@ class Material:
         """(18,) generic coefficients in the compiled kernel's combined form (Fourier media)."""
         if self.fourier is None:
             raise ValueError(f"material {self.name!r} is given by callables, not coefficients")
-        from mjrft._kernel import combined_coefficients
-
         return combined_coefficients(self.fourier)
 
     # ----------------------------------------------------------------- evaluation

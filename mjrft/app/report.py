@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mjrft.demos import DemoResult
-from mjrft.units import CM
+from mjrft.app.demos import DemoResult
+from mjrft.core.units import CM
 
 
 @contextlib.contextmanager

@@ -11,37 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mjrft.material import HARMONICS, Material
-
-#: |n_z| at or above this marks a nearly horizontal plate (DESIGN 2.2): its frame comes from v.
-HORIZONTAL_PLATE_NZ = 1.0 - 1.0e-3
-
-# Fitted scaling functions of the 3D decomposition (Treers et al. 2021, DESIGN 2.7); both map
-# [0, 1] -> [0, 1] with f(0) = 0 and f(1) = 1.
-_F1_GAIN, _F1_SLOPE, _F1_SHIFT, _F1_NORM = (
-    0.440850096954369,
-    3.62263982880971,
-    1.60910808139526,
-    0.832324700111401,
-)
-_F23_GAIN, _F23_SLOPE, _F23_SHIFT, _F23_NORM = (
-    1.99392673405210,
-    1.61146827229181,
-    0.973746396532650,
-    5.81083560370960,
-)
-
-
-def f1(vt: np.ndarray) -> np.ndarray:
-    """Out-of-plane scaling f1 of |v1| (component of the unit velocity along e1), in [0, 1]."""
-    return _F1_GAIN * (np.tanh(_F1_SLOPE * vt - _F1_SHIFT) + np.tanh(_F1_SHIFT)) / _F1_NORM
-
-
-def f23(vn: np.ndarray) -> np.ndarray:
-    """In-plane scaling f23 of |v23| (unit velocity in the plate's vertical plane), in [0, 1]."""
-    return (
-        _F23_GAIN * (np.arctanh(_F23_SLOPE * vn - _F23_SHIFT) + np.arctanh(_F23_SHIFT)) / _F23_NORM
-    )
+from mjrft.core import kernel
+from mjrft.core.law import HORIZONTAL_PLATE_NZ, f1, f23
+from mjrft.core.material import HARMONICS, Material
 
 
 def _unit_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,10 +103,8 @@ def unit_normal_forces(
     and `n_hat` unit normals, world frame.
     """
     if material.fourier is not None and material.alpha_y_fn is None:
-        from mjrft import _kernel  # compiled path; imported late (it reads constants from here)
-
         out = np.empty_like(pos)
-        _kernel.forces(
+        kernel.forces(
             pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
             material.zeta, surface_z, out,
         )  # fmt: skip

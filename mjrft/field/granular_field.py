@@ -37,11 +37,12 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft import _callback, lowspeed
-from mjrft.elements import ElementSet
-from mjrft.material import Material
-from mjrft.rft import unit_normal_forces
-from mjrft.scene import Intruder, Scene, geom_elements, scene_from_model
+from mjrft.core.elements import ElementSet
+from mjrft.core.material import Material
+from mjrft.core.rft import unit_normal_forces
+from mjrft.field import guard as _callback
+from mjrft.field import lowspeed
+from mjrft.field.scene import Intruder, Scene, geom_elements, scene_from_model
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,7 +151,7 @@ def _model_addresses(model: mujoco.MjModel) -> np.ndarray:
     ``opt.gravity`` (same mjOption struct) by writing a sentinel and restoring it, so later
     changes by the user are seen.
     """
-    from mjrft import _native as nt
+    from mjrft.field import native as nt
 
     opt = model.opt
     grav = opt.gravity.ctypes.data
@@ -212,7 +213,7 @@ class _DataState:
 
 
 def _native_words() -> int:
-    from mjrft._native import DATA_WORDS
+    from mjrft.field.native import DATA_WORDS
 
     return DATA_WORDS
 
@@ -290,7 +291,7 @@ class GranularField:
             be.body: self._elem_force_all[o : o + len(be.areas)]
             for be, o in zip(self.bodies, offsets, strict=False)
         }
-        from mjrft._native import N_STATS
+        from mjrft.field.native import N_STATS
 
         self._stats = np.zeros(N_STATS, dtype=np.int64)
         #: Per body of ``body_ids``: True if the low-speed treatment can act on it (a free rigid
@@ -318,7 +319,7 @@ class GranularField:
 
     def _native_table(self, offsets: np.ndarray) -> np.ndarray:
         """Publish the static arrays for mjrft._native.step (kept alive by self)."""
-        from mjrft import _native as nt
+        from mjrft.field import native as nt
 
         self._n_cent = np.ascontiguousarray(np.concatenate([be.centroids for be in self.bodies]))
         self._n_norm = np.ascontiguousarray(np.concatenate([be.normals for be in self.bodies]))
@@ -542,7 +543,7 @@ class GranularField:
         com = data.xipos[b]
         out = np.zeros(6)
         if self._compiled:
-            from mjrft import _kernel
+            from mjrft.core import kernel as _kernel
 
             m = self.material
             use_region = self.region is not None
@@ -615,7 +616,7 @@ class GranularField:
 
     def _wrench_compiled(self, data: mujoco.MjData, out: np.ndarray) -> None:
         """The hot path: one fused kernel call per evaluated geom block (mjrft._kernel)."""
-        from mjrft import _kernel
+        from mjrft.core import kernel as _kernel
 
         m = self.material
         co, ay, zeta = m.kernel_coefficients, m.alpha_y0, m.zeta
@@ -677,7 +678,7 @@ class GranularField:
         """
         st = self._state(data)
         if self._table is not None:
-            from mjrft import _native
+            from mjrft.field import native as _native
 
             status = _native.step(self._table.ctypes.data, st.entry.ctypes.data)
             if status != _native.OK:
@@ -688,7 +689,7 @@ class GranularField:
         keep = np.zeros(len(rows), dtype=bool)  # bodies holding their RK4 step's first wrench
         held = False
         if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
-            from mjrft._native import rk4_hold
+            from mjrft.field.native import rk4_hold
 
             held = bool(rk4_hold(data.time, model.opt.timestep, st.rk4))
             if held:
@@ -737,7 +738,7 @@ class GranularField:
             rk4=np.zeros(_RK4_HEAD + _RK4_BODY * len(self.body_ids)),
         )
         if self._table is not None:
-            from mjrft import _native as nt
+            from mjrft.field import native as nt
 
             for word, arr in (
                 (nt.D_XPOS, data.xpos),

@@ -10,10 +10,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mjrft import geometry
-from mjrft.body import trajectory_wrenches
-from mjrft.material import Material
-from mjrft.units import CM, DEG, MM
+from mjrft.core import geometry
+from mjrft.core.body import trajectory_wrenches
+from mjrft.core.material import Material
+from mjrft.core.units import CM, DEG, MM
 
 # --- Mole-crab ellipsoid (Pacific mole crab, Emerita analoga): 36 mm tall x 19 mm wide/deep.
 ELLIPSOID_SEMI_AXES = (9.5 * MM, 9.5 * MM, 18.0 * MM)

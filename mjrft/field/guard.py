@@ -59,7 +59,7 @@ def _build_guard(trampoline_address: int):
     from numba import cfunc, types
     from numba.extending import intrinsic
 
-    from mjrft import _native
+    from mjrft.field import native as _native
 
     @intrinsic
     def _address(typingctx, ptr):

@@ -33,22 +33,22 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from mjrft.rft import (
-    _F1_GAIN,
-    _F1_NORM,
-    _F1_SHIFT,
-    _F1_SLOPE,
-    _F23_GAIN,
-    _F23_NORM,
-    _F23_SHIFT,
-    _F23_SLOPE,
+from mjrft.core.law import (
+    F1_GAIN,
+    F1_NORM,
+    F1_SHIFT,
+    F1_SLOPE,
+    F23_GAIN,
+    F23_NORM,
+    F23_SHIFT,
+    F23_SLOPE,
     HORIZONTAL_PLATE_NZ,
 )
 
-_TANH_F1_SHIFT = math.tanh(_F1_SHIFT)
-_ATANH_F23_SHIFT = math.atanh(_F23_SHIFT)
-_C1 = _F1_GAIN / _F1_NORM
-_C23 = _F23_GAIN / _F23_NORM
+_TANHF1_SHIFT = math.tanh(F1_SHIFT)
+_ATANHF23_SHIFT = math.atanh(F23_SHIFT)
+_C1 = F1_GAIN / F1_NORM
+_C23 = F23_GAIN / F23_NORM
 #: Elements per chunk: scratch arrays stay in L1 cache.
 CHUNK = 256
 _JIT = {"cache": True, "error_model": "numpy"}
@@ -57,8 +57,8 @@ _JIT = {"cache": True, "error_model": "numpy"}
 # [_EXP_LO, _EXP_HI]; exp(x) = e^mid p((x - mid) / 16)^16, mid the centre, p the Taylor
 # polynomial of exp of degree _EXP_DEGREE (truncation below 1e-18 for |y| <= 0.23; the four
 # squarings multiply the rounding error by 16: ~2e-15 relative).
-_EXP_LO = -2.0 * _F1_SHIFT
-_EXP_HI = 2.0 * (_F1_SLOPE - _F1_SHIFT)
+_EXP_LO = -2.0 * F1_SHIFT
+_EXP_HI = 2.0 * (F1_SLOPE - F1_SHIFT)
 _EXP_MID = 0.5 * (_EXP_LO + _EXP_HI)
 _EXP_SCALE = math.exp(_EXP_MID)
 _EXP_DEGREE = 12
@@ -82,30 +82,6 @@ _INV_TERMS = 7
 _W2_MIN, _W2_MAX = 1e-60, 1e60
 #: In-plane speed |v23| below this counts as zero (gamma = 0): f23 there is below 1e-99.
 _VN_MIN = 1e-100
-
-
-def combined_coefficients(fourier) -> np.ndarray:
-    """(18,) coefficients of alpha_z then alpha_x as sums over the shared products used below.
-
-    alpha = K0 + K1 c2 + K2 s2 + K3 cg + K4 sg + K5 c2 cg + K6 s2 sg + K7 c2 sg + K8 s2 cg, with
-    c2, s2 = cos, sin(2 beta) and cg, sg = cos, sin(gamma); from the 6 harmonics (m, n) of
-    mjrft.material.HARMONICS by cos(2 m b + n g) and sin(2 m b + n g) expanded.
-    """
-
-    def comb(c, s):  # c, s: cosine and sine coefficients over HARMONICS
-        return [
-            c[1],
-            c[0] + c[2],
-            s[2] - s[0],
-            c[4],
-            s[4],
-            c[3] + c[5],
-            c[3] - c[5],
-            s[3] + s[5],
-            s[5] - s[3],
-        ]
-
-    return np.array(comb(fourier.a, fourier.b) + comb(fourier.c, fourier.d), dtype=np.float64)
 
 
 @intrinsic
@@ -189,10 +165,10 @@ def _evaluate(buf, k, co, ay, zeta):
             az = _fma(co[1 + c], term, az)
             ax = _fma(co[10 + c], term, ax)
         # f1 = C1 (tanh(slope |a| - shift) + tanh(shift)), tanh(z) = 1 - 2 / (exp(2z) + 1).
-        e1 = _exp_f1(_fma(2.0 * _F1_SLOPE, abs(a), -2.0 * _F1_SHIFT)) + 1.0
+        e1 = _exp_f1(_fma(2.0 * F1_SLOPE, abs(a), -2.0 * F1_SHIFT)) + 1.0
         # f23 = C23 (atanh(u) + atanh(shift)), atanh(u) = log(num / den) / 2.
-        num = _fma(_F23_SLOPE, vn, 1.0 - _F23_SHIFT)  # 1 + u
-        den = _fma(-_F23_SLOPE, vn, 1.0 + _F23_SHIFT)  # 1 - u
+        num = _fma(F23_SLOPE, vn, 1.0 - F23_SHIFT)  # 1 + u
+        den = _fma(-F23_SLOPE, vn, 1.0 + F23_SHIFT)  # 1 - u
         lg = 0.0
         for thr, below, fac, l2 in _LOG_STEPS:
             hit = num < thr * den if below else num > thr * den
@@ -205,10 +181,10 @@ def _evaluate(buf, k, co, ay, zeta):
         for i in range(_LOG_TERMS - 2, -1, -1):
             ser = _fma(ser, s_sq, 1.0 / (2 * i + 1))
         log_r = _fma(lg, _LN2, 2.0 * sr * ser)
-        f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANH_F1_SHIFT)
+        f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANHF1_SHIFT)
         # DESIGN 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
         s = zeta * buf[8, j]
-        g23 = s * _C23 * _fma(0.5, log_r, _ATANH_F23_SHIFT)
+        g23 = s * _C23 * _fma(0.5, log_r, _ATANHF23_SHIFT)
         sgn = 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
         g1 = -s * f1 * ay * sgn
         gx = -g23 * ax

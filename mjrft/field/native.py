@@ -19,7 +19,7 @@ import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
-from mjrft import _kernel
+from mjrft.core import kernel as _kernel
 
 # Words of a field's static table (uint64 each; addresses of arrays owned by the field).
 F_NELEM, F_CENT, F_NORM, F_AREA = 0, 1, 2, 3

@@ -27,8 +27,8 @@ DEMO_RRD = "demo.rrd"
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from mjrft import demos, report
-    from mjrft.material import Material
+    from mjrft.app import demos, report
+    from mjrft.core.material import Material
 
     out = Path(args.out)
     material = Material.preset(args.material)
@@ -90,14 +90,14 @@ def _demo_rig(name: str, duration: float, material, n_triangles: int, rrd: Path 
 
     Returns (field, simulate.Recording with a row every 10 steps).
     """
-    from mjrft import simulate
-    from mjrft.field import GranularField
+    from mjrft.app import simulate
+    from mjrft.field.granular_field import GranularField
 
     model = simulate.load_model(simulate.models_dir() / f"{name}.xml")
     fld = GranularField(model, material=material, n_triangles=n_triangles)
     recorder = None
     if rrd is not None:
-        from mjrft import viz
+        from mjrft.app import viz
 
         recorder = viz.Recorder(model, fld, rrd, recording_id=f"mjrft-demo-{name}")
     try:
@@ -145,7 +145,7 @@ def _recorder(args: argparse.Namespace, model, fld):
     """The rerun Recorder the options ask for, or None (rerun is imported only then)."""
     if not (args.rrd or args.spawn or args.connect):
         return None
-    from mjrft import viz
+    from mjrft.app import viz
 
     return viz.Recorder(
         model,
@@ -162,8 +162,8 @@ def _recorder(args: argparse.Namespace, model, fld):
 
 
 def _run(args: argparse.Namespace) -> int:
-    from mjrft import simulate
-    from mjrft.field import GranularField
+    from mjrft.app import simulate
+    from mjrft.field.granular_field import GranularField
 
     model = simulate.load_model(args.model)
     simulate.configure(model, args.timestep, args.integrator)
@@ -201,7 +201,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write_run_results(args, model, fld, rec, recorder, out: Path, status: str, t0: float) -> None:
     """CSV, plots and the one-line summary of `mjrft run` (also after a failure or Ctrl-C)."""
-    from mjrft import report
+    from mjrft.app import report
 
     if not rec.rows:
         return
@@ -227,7 +227,7 @@ def _write_run_results(args, model, fld, rec, recorder, out: Path, status: str, 
 
 
 def _integrator_name(model) -> str:
-    from mjrft.simulate import INTEGRATORS
+    from mjrft.app.simulate import INTEGRATORS
 
     return next((k for k, v in INTEGRATORS.items() if v == model.opt.integrator), "?")
 

@@ -1,0 +1,195 @@
+"""Run an MJCF scene with the granular field installed and record its time series.
+
+Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from mjrft.field.granular_field import GranularField
+
+INTEGRATORS = {
+    "euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
+    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
+
+
+def models_dir() -> Path:
+    """The rig models shipped with mjrft (the repository's models/ folder)."""
+    import mjrft_models
+
+    return Path(mjrft_models.__file__).parent
+
+
+def load_model(path: str) -> mujoco.MjModel:
+    """Compile an MJCF file, with an error that names the file."""
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except (ValueError, FileNotFoundError) as exc:
+        raise ValueError(f"cannot load MJCF model {str(path)!r}: {exc}") from exc
+
+
+def configure(model: mujoco.MjModel, timestep: float | None, integrator: str | None) -> None:
+    """Override the model's timestep [s] and integrator (names in INTEGRATORS), validated."""
+    if timestep is not None:
+        if not (math.isfinite(timestep) and timestep > 0):
+            raise ValueError(f"timestep must be a finite number > 0 s, got {timestep}")
+        model.opt.timestep = timestep
+    if integrator is not None:
+        key = integrator.lower()
+        if key not in INTEGRATORS:
+            raise ValueError(
+                f"unknown integrator {integrator!r}; valid: {', '.join(sorted(INTEGRATORS))}"
+            )
+        model.opt.integrator = INTEGRATORS[key]
+
+
+@dataclass
+class Recording:
+    """Time series of a run, grown step by step; columns in SI, world frame.
+
+    Attributes:
+      columns: ordered column names (with units), e.g. 'time_s', '<body>_force_z_N'.
+      rows: recorded rows, one per recorded step.
+      body_names: intruding bodies, in column order.
+    """
+
+    columns: list[str]
+    body_names: list[str]
+    rows: list[np.ndarray] = field(default_factory=list)
+
+    def array(self) -> np.ndarray:
+        """(n_rows, n_columns) array of everything recorded so far."""
+        if not self.rows:
+            return np.zeros((0, len(self.columns)))
+        return np.vstack(self.rows)
+
+    def column(self, name: str) -> np.ndarray:
+        """One recorded column by name."""
+        return self.array()[:, self.columns.index(name)]
+
+
+def _sensor_columns(model: mujoco.MjModel) -> list[str]:
+    cols = []
+    for s in range(model.nsensor):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, s) or f"sensor{s}"
+        dim = int(model.sensor_dim[s])
+        cols += [f"sensor_{name}"] if dim == 1 else [f"sensor_{name}_{i}" for i in range(dim)]
+    return cols
+
+
+def new_recording(model: mujoco.MjModel, fld: GranularField) -> Recording:
+    """Empty recording with the columns of `mjrft run`'s timeseries.csv."""
+    cols = ["time_s"]
+    names = [be.name for be in fld.bodies]
+    for n in names:
+        cols += [f"{n}_com_{a}_m" for a in "xyz"]
+        cols += [f"{n}_vel_{a}_m_per_s" for a in "xyz"]
+        cols += [f"{n}_rft_force_{a}_N" for a in "xyz"]
+        cols += [f"{n}_rft_torque_{a}_Nm" for a in "xyz"]
+    return Recording(cols + _sensor_columns(model), names)
+
+
+def record_row(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    fld: GranularField,
+    wrench: np.ndarray | None = None,
+    time: float | None = None,
+) -> np.ndarray:
+    """One row: time, per intruding body CoM position, CoM velocity, RFT wrench; all sensors.
+
+    Evaluated from data's derived quantities (xipos, cvel, sensordata), which must all describe
+    one state: after mj_forward, or after an Euler/implicit mj_step, which leaves them at the
+    pre-step state (pass that state's `time` then). `wrench` (nbody, 6) is the field's wrench at
+    that state if already known.
+    """
+    w = fld.wrench(data) if wrench is None else wrench
+    parts = [np.array([data.time if time is None else time])]
+    vel = np.zeros(6)
+    for b in fld.body_ids:
+        # Linear velocity of the CoM in the world frame: [rot; lin] at xipos, world orientation.
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, int(b), vel, 0)
+        parts += [data.xipos[b], vel[3:].copy(), w[b]]
+    parts.append(np.array(data.sensordata))
+    return np.concatenate(parts)
+
+
+def run(
+    model: mujoco.MjModel,
+    duration: float,
+    *,
+    fld: GranularField | None = None,
+    record_every: int = 1,
+    progress: Callable[[float], None] | None = None,
+    recording: Recording | None = None,
+    observer: Callable[[int, float, mujoco.MjData], None] | None = None,
+    observe_every: int = 1,
+) -> tuple[mujoco.MjData, Recording]:
+    """Simulate `duration` seconds from keyframe 0 (if any) with the field installed.
+
+    Args:
+      model: compiled model (timestep/integrator already configured).
+      duration: simulated time [s], > 0.
+      fld: the field (built from the model if None).
+      record_every: record one row every this many steps (the initial state is always recorded).
+      progress: called with the fraction done, about 100 times over the run.
+      recording: an existing Recording to append to (it keeps what was recorded if this raises).
+      observer: called as ``observer(step, time, data)`` every ``observe_every`` steps and at the
+        final state, where data's derived quantities (kinematics, ``cvel``, sensors) describe the
+        state after ``step`` steps, at MuJoCo time ``time`` [s] (for Euler/implicit: right after
+        the step that integrated from it, so ``data.qpos`` is already the next state; for RK4
+        after an ``mj_forward`` at it). The field's wrench of that state acted in the step.
+      observe_every: observer period in steps (>= 1).
+    Returns:
+      (final MjData, Recording).
+    """
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a finite number > 0 s, got {duration}")
+    if record_every < 1:
+        raise ValueError(f"record_every must be >= 1, got {record_every}")
+    if observe_every < 1:
+        raise ValueError(f"observe_every must be >= 1, got {observe_every}")
+    fld = fld or GranularField(model)
+    rec = recording or new_recording(model, fld)
+    data = mujoco.MjData(model)
+    if model.nkey > 0:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+    n_steps = max(1, round(duration / model.opt.timestep))
+    tick = max(1, n_steps // 100)
+    # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
+    # wrench at the pre-step state, so that state is recorded after the step at no extra cost.
+    # RK4 leaves its last stage there, so it needs a forward pass at the recorded state.
+    rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    with fld.installed():
+        for i in range(n_steps):
+            record = i % record_every == 0
+            observe = observer is not None and i % observe_every == 0
+            t_prev = data.time
+            if (record or observe) and rk4:
+                mujoco.mj_forward(model, data)
+                if record:
+                    rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+                if observe:
+                    observer(i, t_prev, data)
+            mujoco.mj_step(model, data)
+            if record and not rk4:
+                rec.rows.append(record_row(model, data, fld, fld.last_wrench, time=t_prev))
+            if observe and not rk4:
+                observer(i, t_prev, data)
+            if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
+                progress((i + 1) / n_steps)
+        mujoco.mj_forward(model, data)
+        rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+        if observer is not None:
+            observer(n_steps, data.time, data)
+    return data, rec

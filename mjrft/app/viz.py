@@ -1,0 +1,597 @@
+"""Headless rerun recordings of a granular-field run: bodies, medium, per-element RFT forces.
+
+A leaf module (only the CLI imports it; importing ``mjrft`` never imports rerun). A
+:class:`Recorder` owns its own ``rerun.RecordingStream`` (never rerun's global one), writes to an
+``.rrd`` file, and opens no port and spawns no viewer unless asked (``spawn=True`` /
+``connect=URL``). Use it as a context manager or call :meth:`Recorder.close` in a ``finally``:
+closing flushes and finalises the file, so a run that raises or is interrupted (Ctrl-C) still
+leaves a complete, readable recording of every frame logged before.
+
+What one frame holds (entity paths; ``<body>`` is the MuJoCo body name, escaped for rerun):
+
+* ``world/bodies/<body>`` - Transform3D: the body frame's pose (``xpos``, ``xmat``) in the world.
+* ``world/bodies/<body>/rft_mesh`` - intruding bodies: the RFT surface triangles as a Mesh3D in
+  the body frame (static, each triangle with its own three vertices), and per frame the vertex
+  colours: each triangle coloured by its RFT stress |F| / dA on the fixed scale 0 ...
+  ``stress_max`` [Pa] (viridis; above the scale clipped to yellow), grey where no force acts.
+* ``world/bodies/<body>/geoms`` - the body's other geoms as coarse static meshes (body frame).
+* ``world/forces/<body>`` - Arrows3D in the world frame: origin = triangle centroid [m], vector =
+  RFT force on the triangle [N] times ``arrow_scale`` [m/N]; at most ``max_arrows`` per body (an
+  even stride through the acting triangles), coloured like the mesh. Component
+  ``element_index`` gives each arrow's triangle index in ``field.bodies[i]`` order.
+* ``rft/<body>/force/{x,y,z}`` [N] and ``rft/<body>/torque/{x,y,z}`` [N m]: Scalars, the body's
+  RFT force and torque about its CoM (world frame), the sums over all its triangles.
+* ``sensors/<name>`` (1-D sensors) or ``sensors/<name>/<i>``: every MJCF sensor, as in the CSV.
+
+Static: ``world`` (z up), ``world/surface`` (the free surface z = ``surface_z``, over the medium's
+region or around the bodies), ``world/region`` (the medium's box, if the MJCF sets one) and
+``info`` (this legend with the run's scales). Timelines: ``step`` (sequence: number of steps taken
+before the logged state) and ``sim_time`` (duration: MuJoCo time of the logged state).
+
+Which state a frame shows: the state the step integrated from (for Euler and the implicit
+integrators, the derived quantities MuJoCo leaves after ``mj_step`` describe the pre-step state:
+the pose, ``cvel`` and sensors that produced the RFT force of that step). ``simulate.run`` calls
+the recorder there, with that state's time; for RK4 it runs ``mj_forward`` first. Per-element
+forces come from ``GranularField.element_states`` at exactly that state.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pyarrow as pa
+import rerun as rr
+import rerun.blueprint as rrb
+
+from mjrft.app import simulate
+from mjrft.core import geometry
+from mjrft.field.granular_field import GranularField
+
+#: Default frame period [s] of simulated time: 100 frames per simulated second (``every`` = 10
+#: steps at dt = 1 ms). A 10 s run of models/ellipsoid_pitch.xml then takes about 15 MB.
+DEFAULT_FRAME_PERIOD_S = 0.01
+#: Poses and scalars are sent as columns every this many frames (and when the recorder closes).
+FLUSH_FRAMES = 100
+#: Default maximum number of force arrows per body and frame.
+DEFAULT_MAX_ARROWS = 400
+#: Default top of the stress colour scale [Pa] (10 kPa = 1 N/cm^2). In 0.33 N/cm^3 glass beads
+#: the ellipsoid and root rigs stay mostly below it (median 2-3 kPa, 99th percentile 8-15 kPa in
+#: their runs); the plate rig reaches it about 3 cm deep (use a larger stress_max there).
+DEFAULT_STRESS_MAX_PA = 1.0e4
+#: With the automatic arrow scale, a triangle of median area at ``stress_max`` gets this length [m].
+AUTO_ARROW_LENGTH_M = 0.01
+#: Arrow shaft radius as a fraction of the median triangle's edge length sqrt(dA).
+ARROW_RADIUS_PER_EDGE = 0.12
+#: Target triangle count of each non-intruding primitive geom drawn (coarse: shape only).
+OTHER_GEOM_TRIANGLES = 200
+#: Colour of triangles on which no RFT force acts (RGB, 0-255).
+NO_FORCE_RGB = (170, 170, 170)
+#: Colour of the free surface (RGBA; translucent sand) and of the region box.
+SURFACE_RGBA = (222, 194, 140, 110)
+REGION_RGBA = (150, 120, 70, 255)
+#: Half size of the drawn surface when the MJCF sets no region: model extent times this [-].
+SURFACE_EXTENT_FACTOR = 0.5
+#: gRPC address used by ``connect`` when none is given (rerun's default viewer port).
+DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
+
+# Viridis, sampled at 0, 1/8, ..., 1 (RGB, 0-255); linear interpolation between samples.
+_VIRIDIS = np.array(
+    [
+        [68, 1, 84],
+        [71, 44, 122],
+        [59, 81, 139],
+        [44, 113, 142],
+        [33, 144, 141],
+        [39, 173, 129],
+        [92, 200, 99],
+        [170, 220, 50],
+        [253, 231, 37],
+    ],
+    dtype=np.float64,
+)
+
+
+def _rgba32(rgb: np.ndarray) -> np.ndarray:
+    """Pack (n, 3) RGB in 0..255 into rerun's Rgba32 (0xRRGGBBAA, opaque) as uint32."""
+    c = np.rint(rgb).astype(np.uint32)
+    return (c[:, 0] << 24) | (c[:, 1] << 16) | (c[:, 2] << 8) | np.uint32(255)
+
+
+#: Number of colour levels of the stress scale.
+STRESS_LEVELS = 256
+_STRESS_LUT = _rgba32(
+    np.column_stack(
+        [
+            np.interp(np.linspace(0.0, 1.0, STRESS_LEVELS), np.linspace(0, 1, len(_VIRIDIS)), c)
+            for c in _VIRIDIS.T
+        ]
+    )
+)
+_NO_FORCE = _rgba32(np.array([NO_FORCE_RGB]))[0]
+
+
+def stress_colors(stress: np.ndarray, stress_max: float) -> np.ndarray:
+    """Colour of each triangle from its stress |F|/dA [Pa], as (n,) uint32 Rgba32 (0xRRGGBBAA).
+
+    Viridis in ``STRESS_LEVELS`` steps over 0 ... ``stress_max`` [Pa], clipped above; exactly
+    zero stress (no force acts) is grey ``NO_FORCE_RGB``. Opaque.
+    """
+    s = np.asarray(stress, dtype=np.float64)
+    level = np.rint(np.clip(s / stress_max, 0.0, 1.0) * (STRESS_LEVELS - 1)).astype(np.int64)
+    return np.where(s == 0.0, _NO_FORCE, _STRESS_LUT[level]).astype(np.uint32)
+
+
+def _body_name(model: mujoco.MjModel, b: int) -> str:
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"
+
+
+def _part(name: str) -> str:
+    """One entity-path component (rerun escapes '/', spaces and other special characters)."""
+    return rr.escape_entity_path_part(name)
+
+
+def sensor_entities(model: mujoco.MjModel) -> list[str]:
+    """Entity path of every sensordata entry, in sensordata order (mirrors the CSV columns)."""
+    out = []
+    for s in range(model.nsensor):
+        name = _part(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SENSOR, s) or f"sensor{s}")
+        dim = int(model.sensor_dim[s])
+        out += [f"sensors/{name}"] if dim == 1 else [f"sensors/{name}/{i}" for i in range(dim)]
+    return out
+
+
+def _quat_mat(q: np.ndarray) -> np.ndarray:
+    m = np.zeros(9)
+    mujoco.mju_quat2Mat(m, np.asarray(q, dtype=np.float64))
+    return m.reshape(3, 3)
+
+
+def _geom_mesh(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(vertices, faces) of a geom in its geom frame for drawing, or None if not drawable."""
+    t = int(model.geom_type[g])
+    kinds = {
+        int(mujoco.mjtGeom.mjGEOM_SPHERE): "sphere",
+        int(mujoco.mjtGeom.mjGEOM_ELLIPSOID): "ellipsoid",
+        int(mujoco.mjtGeom.mjGEOM_CAPSULE): "capsule",
+        int(mujoco.mjtGeom.mjGEOM_CYLINDER): "cylinder",
+        int(mujoco.mjtGeom.mjGEOM_BOX): "box",
+    }
+    if t == int(mujoco.mjtGeom.mjGEOM_MESH):
+        mid = model.geom_dataid[g]
+        va, vn = model.mesh_vertadr[mid], model.mesh_vertnum[mid]
+        fa, fn = model.mesh_faceadr[mid], model.mesh_facenum[mid]
+        return (
+            np.array(model.mesh_vert[va : va + vn], dtype=np.float64),
+            np.array(model.mesh_face[fa : fa + fn], dtype=np.int64),
+        )
+    if t not in kinds:
+        return None
+    try:
+        es = geometry.primitive(kinds[t], model.geom_size[g], n_triangles=OTHER_GEOM_TRIANGLES)
+    except ValueError:
+        return None
+    return np.asarray(es.vertices), np.asarray(es.faces)
+
+
+def _viewer_executable() -> str | None:
+    """The ``rerun`` viewer on PATH, else the one installed next to this Python (a venv that
+    is not activated), else None (rerun then reports how to install it)."""
+    found = shutil.which("rerun")
+    if found:
+        return found
+    beside = Path(sys.executable).with_name("rerun")
+    return str(beside) if beside.exists() else None
+
+
+class Recorder:
+    """Logs frames of a MuJoCo run with a GranularField to a rerun recording (headless).
+
+    Args:
+      model: the compiled model; fld: its field (the per-element forces come from it).
+      path: ``.rrd`` file to write (parent folders created); None to only stream (needs
+        ``spawn`` or ``connect``).
+      every: log a frame every this many steps (used by :func:`record` / ``simulate.run``);
+        None: ``DEFAULT_FRAME_PERIOD_S`` of simulated time, round(0.01 s / timestep) steps.
+      max_arrows: maximum force arrows per body and frame (0: no arrows).
+      arrow_scale: arrow length per newton [m/N]; None: automatic, so that a triangle of the
+        body's median area at ``stress_max`` gets ``AUTO_ARROW_LENGTH_M`` (1 cm).
+      stress_max: top of the triangle colour scale [Pa].
+      spawn: also start a rerun viewer and stream to it (opens a local port).
+      connect: also stream to a running viewer at this gRPC URL (e.g. ``DEFAULT_CONNECT_URL``).
+      other_geoms: draw the non-intruding geoms of moving bodies (coarse, static per body).
+      application_id, recording_id: rerun's identifiers (recording_id random if None).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        fld: GranularField,
+        path: str | os.PathLike | None,
+        *,
+        every: int | None = None,
+        max_arrows: int = DEFAULT_MAX_ARROWS,
+        arrow_scale: float | None = None,
+        stress_max: float = DEFAULT_STRESS_MAX_PA,
+        spawn: bool = False,
+        connect: str | None = None,
+        other_geoms: bool = True,
+        application_id: str = "mjrft",
+        recording_id: str | None = None,
+    ) -> None:
+        if every is None:
+            every = max(1, round(DEFAULT_FRAME_PERIOD_S / model.opt.timestep))
+        if every < 1:
+            raise ValueError(f"every must be >= 1 step, got {every}")
+        if max_arrows < 0:
+            raise ValueError(f"max_arrows must be >= 0, got {max_arrows}")
+        if arrow_scale is not None and not (math.isfinite(arrow_scale) and arrow_scale > 0):
+            raise ValueError(f"arrow_scale must be a finite number > 0 m/N, got {arrow_scale}")
+        if not (math.isfinite(stress_max) and stress_max > 0):
+            raise ValueError(f"stress_max must be a finite number > 0 Pa, got {stress_max}")
+        if path is None and not spawn and not connect:
+            raise ValueError("a recording needs a file path, spawn=True or connect=URL")
+        self.model, self.fld = model, fld
+        self.path = None if path is None else Path(path)
+        self.every, self.max_arrows, self.stress_max = int(every), int(max_arrows), stress_max
+        self.frames = 0
+        median_area = float(np.median(np.concatenate([be.areas for be in fld.bodies])))
+        self.arrow_scale = (
+            AUTO_ARROW_LENGTH_M / (stress_max * median_area) if arrow_scale is None else arrow_scale
+        )
+        self.arrow_radius = ARROW_RADIUS_PER_EDGE * math.sqrt(median_area)
+        self._names = {b: _part(_body_name(model, b)) for b in range(1, model.nbody)}
+        self._other = self._other_geom_meshes() if other_geoms else {}
+        self._intruders = [be.body for be in fld.bodies]
+        self._drawn = sorted(set(self._intruders) | set(self._other))
+        self._scalar_paths = [
+            f"rft/{self._names[be.body]}/{q}/{a}"
+            for be in fld.bodies
+            for q in ("force", "torque")
+            for a in "xyz"
+        ] + sensor_entities(model)
+        self._active = {be.body: False for be in fld.bodies}
+        self._steps: list[int] = []
+        self._times: list[float] = []
+        self._poses: list[tuple[np.ndarray, np.ndarray]] = []
+        self._scalars: list[np.ndarray] = []
+        self._closed = False
+
+        self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
+        self.rec.set_log_time_enabled(False)  # only the simulation's timelines
+        sinks = []
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(self.path)))
+        if spawn:
+            try:
+                rr.spawn(connect=False, executable_path=_viewer_executable(), recording=self.rec)
+            except RuntimeError as exc:  # no viewer executable, or it failed to start
+                raise ValueError(f"cannot start the rerun viewer (spawn): {exc}") from exc
+            sinks.append(rr.GrpcSink(DEFAULT_CONNECT_URL))
+        if connect:
+            if not spawn or connect != DEFAULT_CONNECT_URL:
+                sinks.append(rr.GrpcSink(connect))
+        self.rec.set_sinks(*sinks, default_blueprint=self._blueprint())
+        try:
+            self._log_static()
+        except BaseException:
+            self.close()
+            raise
+
+    # ------------------------------------------------------------------ static content
+    def _other_geom_meshes(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per moving body: (vertices, faces, RGBA) of its non-intruding geoms, body frame."""
+        m = self.model
+        tagged = set(self.fld.geom_elements)
+        parts: dict[int, list] = {}
+        for g in range(m.ngeom):
+            b = int(m.geom_bodyid[g])
+            if b == 0 or g in tagged or m.geom_rgba[g, 3] == 0:
+                continue
+            mesh = _geom_mesh(m, g)
+            if mesh is None:
+                continue
+            v, f = mesh
+            v = v @ _quat_mat(m.geom_quat[g]).T + m.geom_pos[g]
+            rgba = np.rint(np.clip(m.geom_rgba[g], 0, 1) * 255).astype(np.uint8)
+            parts.setdefault(b, []).append((v, f, np.tile(rgba, (len(v), 1))))
+        out = {}
+        for b, items in parts.items():
+            offs = np.cumsum([0] + [len(v) for v, _, _ in items[:-1]])
+            out[b] = (
+                np.concatenate([v for v, _, _ in items]),
+                np.concatenate([f + o for (_, f, _), o in zip(items, offs, strict=True)]),
+                np.concatenate([c for _, _, c in items]),
+            )
+        return out
+
+    def _blueprint(self) -> rrb.Blueprint:
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Spatial3DView(origin="world", name="bodies, medium, RFT forces"),
+                rrb.Vertical(
+                    rrb.TimeSeriesView(origin="rft", name="RFT force [N], torque [N m]"),
+                    rrb.TimeSeriesView(origin="sensors", name="MJCF sensors"),
+                ),
+                column_shares=[3, 2],
+            ),
+            rrb.TimePanel(timeline="sim_time"),
+            collapse_panels=False,
+        )
+
+    def _surface_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) xy corners of the drawn surface [m]."""
+        if self.fld.region is not None:
+            return self.fld.region[0, :2], self.fld.region[1, :2]
+        centre = np.asarray(self.model.stat.center[:2], dtype=np.float64)
+        half = SURFACE_EXTENT_FACTOR * float(self.model.stat.extent)
+        return centre - half, centre + half
+
+    def _log_static(self) -> None:
+        rec, fld = self.rec, self.fld
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        (x0, y0), (x1, y1) = self._surface_box()
+        z = fld.surface_z
+        corners = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]])
+        rec.log(
+            "world/surface",
+            rr.Mesh3D(
+                vertex_positions=corners,
+                triangle_indices=[[0, 1, 2], [0, 2, 3]],
+                albedo_factor=SURFACE_RGBA,
+            ),
+            static=True,
+        )
+        if fld.region is not None:
+            lo, hi = fld.region
+            rec.log(
+                "world/region",
+                rr.Boxes3D(mins=[lo], sizes=[hi - lo], colors=[REGION_RGBA], radii=0.0005),
+                static=True,
+            )
+        for be in fld.bodies:
+            es = fld.body_element_set(be.body)
+            tri = np.asarray(es.vertices)[np.asarray(es.faces)].reshape(-1, 3)
+            normals = np.repeat(np.asarray(es.normals), 3, axis=0)
+            colors = stress_colors(np.zeros(len(es)), self.stress_max)
+            rec.log(
+                f"world/bodies/{self._names[be.body]}/rft_mesh",
+                rr.Mesh3D(
+                    vertex_positions=tri, vertex_normals=normals, vertex_colors=np.repeat(colors, 3)
+                ),
+                static=True,
+            )
+        for b, (v, f, c) in self._other.items():
+            rec.log(
+                f"world/bodies/{self._names[b]}/geoms",
+                rr.Mesh3D(vertex_positions=v, triangle_indices=f, vertex_colors=c),
+                static=True,
+            )
+        for be in fld.bodies:
+            name = self._names[be.body]
+            for quantity, unit in (("force", "N"), ("torque", "N m")):
+                for axis in "xyz":
+                    rec.log(
+                        f"rft/{name}/{quantity}/{axis}",
+                        rr.SeriesLines(names=f"{be.name} RFT {quantity} {axis} [{unit}]"),
+                        static=True,
+                    )
+        rec.log("info", rr.TextDocument(self.legend(), media_type="text/markdown"), static=True)
+
+    def legend(self) -> str:
+        """Markdown legend of the recording: entities, frames, units and this run's scales."""
+        return (
+            "# mjrft recording\n\n"
+            f"* `world/bodies/<body>`: body pose (world frame). `.../rft_mesh`: RFT triangles, "
+            f"coloured by stress |F|/dA, viridis 0 ... {self.stress_max:g} Pa (clipped above; "
+            "grey = no force). `.../geoms`: other geoms (coarse).\n"
+            f"* `world/forces/<body>`: per-triangle RFT force arrows, world frame, "
+            f"{self.arrow_scale:.4g} m per N, at most {self.max_arrows} per body (even stride "
+            "over acting triangles); component `element_index` = triangle index.\n"
+            "* `rft/<body>/force|torque/x|y|z`: RFT force [N] and torque about the CoM [N m], "
+            "world frame.\n"
+            "* `sensors/<name>[/i]`: MJCF sensors (MuJoCo units and frames).\n"
+            "* `world/surface`: free surface; `world/region`: the medium's box (if any).\n\n"
+            f"A frame every {self.every} steps; timelines `step` and `sim_time`. Each frame shows "
+            "the state a step integrated from and the forces computed there."
+        )
+
+    # ------------------------------------------------------------------ frames
+    def log_state(self, step: int, time: float, data: mujoco.MjData) -> None:
+        """Log one frame from data's derived quantities (xpos, xmat, cvel, sensordata).
+
+        Args:
+          step: value on the ``step`` timeline. time: value on ``sim_time`` [s] (the time of
+            the state the derived quantities describe; after an Euler step, the pre-step time).
+          data: MjData whose derived quantities are consistent (after ``mj_forward``, or after
+            an Euler/implicit ``mj_step``).
+
+        Poses and scalars are buffered and sent as columns every ``FLUSH_FRAMES`` frames and on
+        :meth:`close` (one call per entity instead of one per value: logging stays well below
+        the cost of the steps). Mesh colours and arrows of a body are logged while it feels a
+        force, and once more (grey, no arrows) when it stops.
+        """
+        if self._closed:
+            raise RuntimeError("this Recorder is closed")
+        rec, fld = self.rec, self.fld
+        self._steps.append(int(step))
+        self._times.append(float(time))
+        self._poses.append((data.xpos[self._drawn].copy(), data.xmat[self._drawn].copy()))
+        states = {st.body: st for st in fld.element_states(data)}
+        scalars = []
+        timed = False
+        for be in fld.bodies:
+            b = be.body
+            st = states.get(b)
+            force, torque = np.zeros(3), np.zeros(3)
+            active = False
+            if st is not None:
+                mag = np.sqrt(np.einsum("ij,ij->i", st.force, st.force))
+                acting = np.flatnonzero(mag > 0.0)
+                active = len(acting) > 0
+                force = st.force.sum(axis=0)
+                r, f = st.pos - data.xipos[b], st.force
+                torque = np.array(
+                    [
+                        np.dot(r[:, 1], f[:, 2]) - np.dot(r[:, 2], f[:, 1]),
+                        np.dot(r[:, 2], f[:, 0]) - np.dot(r[:, 0], f[:, 2]),
+                        np.dot(r[:, 0], f[:, 1]) - np.dot(r[:, 1], f[:, 0]),
+                    ]
+                )  # sum of r x f about the CoM
+            scalars += [force, torque]
+            if not (active or self._active[b]):
+                continue  # unchanged since the last logged frame: grey, no arrows
+            self._active[b] = active
+            if not timed:
+                rec.set_time("step", sequence=int(step))
+                rec.set_time("sim_time", duration=float(time))
+                timed = True
+            name = self._names[b]
+            stress = np.zeros(len(be.areas))
+            index = np.zeros(0, dtype=np.int64)
+            origins = vectors = np.zeros((0, 3))
+            if active:
+                stress[st.index] = mag / st.area
+                if len(acting) > self.max_arrows:  # an even stride through the acting triangles
+                    pick = np.linspace(0, len(acting) - 1, self.max_arrows)
+                    acting = acting[np.rint(pick).astype(np.int64)]
+                index = st.index[acting]
+                origins, vectors = st.pos[acting], st.force[acting] * self.arrow_scale
+            colors = stress_colors(stress, self.stress_max)
+            rec.log(
+                f"world/bodies/{name}/rft_mesh",
+                rr.Mesh3D.from_fields(vertex_colors=np.repeat(colors, 3)),
+            )
+            rec.log(
+                f"world/forces/{name}",
+                rr.Arrows3D(
+                    origins=origins,
+                    vectors=vectors,
+                    colors=colors[index],
+                    radii=self.arrow_radius,
+                ),
+                rr.AnyValues(element_index=pa.array(index, type=pa.uint32())),
+            )
+        scalars.append(np.asarray(data.sensordata, dtype=np.float64))
+        self._scalars.append(np.concatenate(scalars))
+        self.frames += 1
+        if len(self._steps) >= FLUSH_FRAMES:
+            self._send_buffered()
+
+    def _send_buffered(self) -> None:
+        """Send the buffered poses and scalars as one column chunk per entity."""
+        if not self._steps:
+            return
+        steps, times = np.array(self._steps), np.array(self._times)
+        xpos = np.stack([p for p, _ in self._poses])  # (frames, drawn, 3)
+        xmat = np.stack([m for _, m in self._poses])  # (frames, drawn, 9)
+        values = np.stack(self._scalars)  # (frames, scalar paths)
+        self._steps, self._times, self._poses, self._scalars = [], [], [], []
+        indexes = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("sim_time", duration=times)]
+        for j, b in enumerate(self._drawn):
+            self.rec.send_columns(
+                f"world/bodies/{self._names[b]}",
+                indexes=indexes,
+                columns=rr.Transform3D.columns(
+                    translation=xpos[:, j], mat3x3=xmat[:, j].reshape(-1, 3, 3)
+                ),
+            )
+        for k, path in enumerate(self._scalar_paths):
+            self.rec.send_columns(
+                path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, k])
+            )
+
+    def __call__(self, step: int, time: float, data: mujoco.MjData) -> None:
+        """Observer for ``simulate.run``: same as :meth:`log_state`."""
+        self.log_state(step, time, data)
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        """Send what is buffered, flush, finalise the file (idempotent; call in a ``finally``).
+
+        A viewer that cannot be reached (``connect``) only warns: the file is still completed.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._send_buffered()
+            self.rec.flush()
+        except RuntimeError as exc:  # rerun reports unreachable gRPC sinks this way
+            warnings.warn(f"rerun: {exc}", RuntimeWarning, stacklevel=2)
+        finally:
+            self.rec.disconnect()
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def record(
+    model: mujoco.MjModel,
+    duration: float,
+    path: str | os.PathLike | None,
+    *,
+    fld: GranularField | None = None,
+    record_every: int = 1,
+    progress: Callable[[float], None] | None = None,
+    recording: simulate.Recording | None = None,
+    **recorder_options: object,
+) -> tuple[mujoco.MjData, simulate.Recording]:
+    """``simulate.run`` with a :class:`Recorder` logging every ``every`` steps to ``path``.
+
+    The recorder is closed (file complete) however the run ends. Keyword arguments of
+    :class:`Recorder` (``every``, ``max_arrows``, ``arrow_scale``, ``stress_max``, ``spawn``,
+    ``connect``, ...) pass through; the rest are those of ``simulate.run``.
+    """
+    fld = fld or GranularField(model)
+    with Recorder(model, fld, path, **recorder_options) as rec:
+        return simulate.run(
+            model,
+            duration,
+            fld=fld,
+            record_every=record_every,
+            progress=progress,
+            recording=recording,
+            observer=rec,
+            observe_every=rec.every,
+        )
+
+
+def read_entity(path: str | os.PathLike, entity: str) -> list[dict[str, object]]:
+    """Every row logged to one entity of an ``.rrd`` file, read back with rerun's own reader.
+
+    Returns dicts of column -> Python value, sorted by ``step`` where the rows have one: the
+    timelines ``step`` (int) and ``sim_time`` (float seconds) and the components under their
+    rerun names (``Arrows3D:vectors``: list of [x, y, z]; ``Scalars:scalars``: [value]; ...).
+    Static rows have no timeline. For checks and tests; for analysis see ``rerun.dataframe``.
+    """
+    from rerun.chunk import RrdReader
+
+    want = entity if entity.startswith("/") else "/" + entity
+    rows: list[dict[str, object]] = []
+    for chunk in RrdReader(str(path)).stream():
+        if chunk.entity_path != want:
+            continue
+        batch = chunk.to_record_batch()
+        cols = {}
+        for name in batch.schema.names:
+            if name.startswith("rerun.controls."):
+                continue
+            arr = batch.column(name)
+            if pa.types.is_duration(arr.type):
+                cols[name] = [v * 1e-9 for v in arr.cast(pa.int64()).to_pylist()]  # ns -> s
+            else:
+                cols[name] = arr.to_pylist()
+        rows += [{k: v[i] for k, v in cols.items()} for i in range(batch.num_rows)]
+    return sorted(rows, key=lambda r: r.get("step", -1))
