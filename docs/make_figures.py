@@ -16,7 +16,7 @@ DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from mjrft import simulate
+from mjrft import simulate  # noqa: E402
 from mjrft.app import report  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
 

@@ -1,5 +1,6 @@
-"""``mjrft.batch`` is the public name of :mod:`mjrft.field.batch` (many copies of one granular scene on MuJoCo's threaded batch).
+"""``mjrft.batch`` is the public name of :mod:`mjrft.field.batch`.
 
+Many copies of one granular scene on MuJoCo's threaded batch.
 The name stays stable for outside scripts while the implementation lives in its layer; importing
 it yields that very module (one implementation, no copies of its names).
 """

@@ -1,5 +1,6 @@
-"""``mjrft.body`` is the public name of :mod:`mjrft.core.body` (rigid-body RFT of prescribed motions).
+"""``mjrft.body`` is the public name of :mod:`mjrft.core.body`.
 
+Rigid-body RFT of prescribed motions.
 The name stays stable for outside scripts while the implementation lives in its layer; importing
 it yields that very module (one implementation, no copies of its names).
 """

@@ -1,5 +1,6 @@
-"""``mjrft.geometry`` is the public name of :mod:`mjrft.core.geometry` (surface elements of primitives and checked meshes).
+"""``mjrft.geometry`` is the public name of :mod:`mjrft.core.geometry`.
 
+Surface elements of primitives and checked meshes.
 The name stays stable for outside scripts while the implementation lives in its layer; importing
 it yields that very module (one implementation, no copies of its names).
 """

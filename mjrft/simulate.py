@@ -1,5 +1,6 @@
-"""``mjrft.simulate`` is the public name of :mod:`mjrft.app.simulate` (runs of an MJCF scene with the field installed).
+"""``mjrft.simulate`` is the public name of :mod:`mjrft.app.simulate`.
 
+Runs of an MJCF scene with the field installed.
 The name stays stable for outside scripts while the implementation lives in its layer; importing
 it yields that very module (one implementation, no copies of its names).
 """

@@ -1,5 +1,6 @@
-"""``mjrft.viz`` is the public name of :mod:`mjrft.app.viz` (headless rerun recordings of granular runs).
+"""``mjrft.viz`` is the public name of :mod:`mjrft.app.viz`.
 
+Headless rerun recordings of granular runs.
 The name stays stable for outside scripts while the implementation lives in its layer; importing
 it yields that very module (one implementation, no copies of its names).
 """

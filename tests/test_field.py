@@ -427,9 +427,9 @@ def test_rk4_holds_a_body_at_rest_over_the_step():
 
 
 def test_interleaved_mjdata_of_one_field_step_as_if_alone():
-    """The native pass keeps its per-pass work arrays (hold and freeze flags, culling rows, RK4
-    records) on the field, not per MjData: stepping two MjData in turn must give bit for bit
-    what each gives stepped alone, including a body the treatment holds at rest under RK4."""
+    """The pass keeps its work arrays (hold and freeze flags, culling rows, RK4 records) per
+    MjData: stepping two MjData in turn must give bit for bit what each gives stepped alone,
+    including a body the treatment holds at rest under RK4."""
     m = ball_model(option='integrator="RK4"')
     fld = GranularField(m)
     steps = 320  # the resting ball is held from ~step 250 on (previous test)
@@ -458,42 +458,36 @@ def test_interleaved_mjdata_of_one_field_step_as_if_alone():
         np.testing.assert_array_equal(d.qvel, qvel)
 
 
-def test_rk4_stage_constant_matches_mujoco():
-    from mjrft.field import granular_field as field
-    from mjrft.field import lowspeed
-    from mjrft.field import native as _native
+def test_rk4_stage_rule_equals_the_reference():
+    from field_reference import rk4_stage_held
 
-    assert _native.INT_RK4 == int(mujoco.mjtIntegrator.mjINT_RK4)
-    # the Python path's copy of the stage record layout
-    assert (field._RK4_HEAD, field._RK4_BODY) == (_native.RK4_HEAD, _native.RK4_BODY)
-    assert (field._RK4_HOLD, field._RK4_FROZEN) == (_native.RK4_HOLD, _native.RK4_FROZEN)
-    assert _native.ROUNDING == lowspeed.ROUNDING  # the energy guards' rounding, both paths
-
-
-def test_rk4_hold_recognises_only_the_stage_pattern():
-    from mjrft.field.native import rk4_hold
+    from mjrft.field.rk4 import stage_held
 
     h, t0 = 0.003, 0.7
-    rec = np.zeros(2)
     # one step: stage 1 evaluated, 2-4 held; the next step's stage 1 (t0 + h) evaluated again
-    seq = [t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 1.0 * h, t0 + h, (t0 + h) + 0.5 * h]
-    assert [rk4_hold(t, h, rec) for t in seq] == [False, True, True, True, False, True]
-    rec[:] = 0.0
+    steps = [t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 1.0 * h, t0 + h, (t0 + h) + 0.5 * h]
     # anything else is evaluated: a pass before any stage 1, a repeated time, a third pass at
     # the half step, a pass that skips ahead
-    seq = [t0 + 0.5 * h, t0, t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 3.0 * h]
-    assert [rk4_hold(t, h, rec) for t in seq] == [False, False, False, True, True, False, False]
+    other = [t0 + 0.5 * h, t0, t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 3.0 * h]
+    for seq, want in (
+        (steps, [False, True, True, True, False, True]),
+        (other, [False, False, False, True, True, False, False]),
+    ):
+        rec, reference = np.zeros(2), [0.0, 0.0]
+        assert [bool(stage_held(t, h, rec)) for t in seq] == want
+        assert [rk4_stage_held(t, h, reference) for t in seq] == want
 
 
 # A light ball just below the surface, sinking slowly: the implicit step moves it, and RK4's
-# later stages keep its first stage's twist and correction (mjrft._native.RK4_FROZEN).
+# later stages keep its first stage's twist and correction (mjrft.field.rk4.RK4_FROZEN).
 SINKING_BALL = BALL.replace('pos="0.01 -0.02 -0.004"', 'pos="0.01 -0.02 0.008"')
 SINKING = {"v": (0.001, 0.0, -0.01), "w": (0.3, -0.2, 0.1)}
 
 
 @pytest.mark.parametrize("start", ["moving", "resting", "sinking"])
 def test_python_material_path_follows_the_same_rk4_rule(start):
-    """A medium given as Python callables (no native table) follows the same RK4 rule."""
+    """A medium given as Python callables (evaluated in Python inside the compiled pass) follows
+    the same RK4 rule."""
     if start == "sinking":
         m = mujoco.MjModel.from_xml_string(scene_xml(SINKING_BALL, option='integrator="RK4"'))
     else:
@@ -504,7 +498,6 @@ def test_python_material_path_follows_the_same_rk4_rule(start):
         compiled.material.zeta, name="glass, callables",
     )  # fmt: skip
     fld = GranularField(m, material=mat)
-    assert fld._table is None  # the Python path
     rest = {"v": (0.0, 0.0, 0.0), "w": (0.0, 0.0, 0.0)}
     motion = {"moving": SHOT, "resting": rest, "sinking": SINKING}[start]
     a, _ = simulate(m, 40, fld=fld, motion=motion)

@@ -18,7 +18,7 @@ import pytest
 rr = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from mjrft import simulate, viz
+from mjrft import simulate, viz  # noqa: E402
 from mjrft.app import cli, report  # noqa: E402
 from mjrft.core.material import Material  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402

@@ -3,15 +3,15 @@
 ``mujoco.batch.Batch`` steps many simulations of one model on a thread pool and refuses Python
 callbacks, so here the granular forces enter the way the design card describes for batches:
 through ``xfrc_applied`` between steps. Each substep: one native call computes the RFT wrenches of
-every copy from the bound position- and velocity-stage fields (``mjrft._native.batch_wrench``),
+every copy from the bound position- and velocity-stage fields (``mjrft.field.passive.batch``),
 ``xfrc_applied = user + RFT`` is written, and the batch steps with ``stage=mjSTAGE_VEL``, which
 leaves those fields current at the new state (a persistent batch then continues from them, so
 this costs no extra forward pass). The RFT pass runs on ``nthread`` Python threads over disjoint
 sets of copies (the native call releases the GIL), between MuJoCo's batch steps, so the two
-never compete for cores.
-This is the explicit path of ``mjrft.field`` for every copy (the force is evaluated at the state
-at the start of the substep and held over it), and gives the same trajectories as that path on
-single MjData (tests/test_batch.py).
+never compete for cores. Each copy gets the field's one compiled pass in its explicit form
+(``mjrft.field.passive``: the force is evaluated at the state at the start of the substep and
+held over it), so a batch gives the same trajectories as ``GranularField.wrench`` on single
+MjData, bit for bit (tests/test_batch.py).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch
 
-from mjrft.field import native as _native
+from mjrft.field import passive
 from mjrft.field.granular_field import GranularField
 
 #: Fewest copies per RFT thread (below it, fewer threads).
@@ -49,7 +49,7 @@ class BatchedField:
     _DERIVED = ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos")
 
     def __init__(self, field: GranularField, nsim: int, nthread: int | None = None) -> None:
-        if field._table is None:
+        if not field._native:
             raise ValueError(
                 f"material {field.material.name!r} is given by Python callables; batched "
                 "stepping needs a Fourier-form material (a preset, a table, or zeta)"
@@ -67,17 +67,15 @@ class BatchedField:
         # RFT threads: at least _MIN_COPIES_PER_THREAD copies each (a hand-off costs ~20 us).
         n_rft = max(1, min(nthread or os.cpu_count() or 1, nsim // _MIN_COPIES_PER_THREAD))
         bounds = np.linspace(0, nsim, n_rft + 1).round().astype(int)
-        # One thread adds to the field's statistics directly; several add to their own rows,
-        # summed into the field's after each pass.
-        self._counts = np.zeros((n_rft, _native.N_STATS), dtype=np.int64)
+        # Each RFT thread has its own state (work arrays, counters in the field's stats).
+        self._states = [field._counted_state() for _ in range(n_rft)]
         arr, self._jobs = self._arrays, []
-        for k, (lo, hi) in enumerate(itertools.pairwise(bounds.tolist())):
+        for st, (lo, hi) in zip(self._states, itertools.pairwise(bounds.tolist()), strict=True):
             sl = slice(lo, hi)
-            counts = self.field._stats if n_rft == 1 else self._counts[k]
             self._jobs.append(
-                (self.field._table.ctypes.data, arr["xpos"][sl], arr["xmat"][sl],
+                (field._tables.address, st.address, arr["xpos"][sl], arr["xmat"][sl],
                  arr["xipos"][sl], arr["ximat"][sl], arr["cvel"][sl], arr["subtree_com"][sl],
-                 arr["geom_xpos"][sl], self._user[sl], self._wrench[sl], counts)
+                 arr["geom_xpos"][sl], self._user[sl], self._wrench[sl])
             )  # fmt: skip
         self._starts = bounds[:-1].tolist()
         self._pool = ThreadPoolExecutor(n_rft - 1) if n_rft > 1 else None
@@ -121,11 +119,9 @@ class BatchedField:
             if self._pool is None:
                 status = [self._rft(0)]
             else:  # the last slice on this thread, the others on the pool
-                self._counts[:] = 0
                 jobs = [self._pool.submit(self._rft, k) for k in range(len(self._jobs) - 1)]
                 status = [self._rft(len(self._jobs) - 1)]
                 status = [j.result() for j in jobs] + status
-                self.field._stats += self._counts.sum(axis=0)
             bad = [st for st in status if st is not None]
             if bad:
                 sim = min(bad)
@@ -139,8 +135,8 @@ class BatchedField:
 
     def _rft(self, k: int) -> int | None:
         """RFT wrenches of the copies of job k; the first bad copy's index or None."""
-        status = _native.batch_wrench(*self._jobs[k])
-        return None if status == _native.OK else self._starts[k] + (-1 - status)
+        status = passive.batch(*self._jobs[k])
+        return None if status == passive.OK else self._starts[k] + (-1 - status)
 
     def close(self) -> None:
         """Stop the RFT threads (also done when the object is garbage collected)."""

@@ -9,10 +9,11 @@ enters Python. The guard must be native rather than a ctypes callback: the bindi
 exceptions with ``longjmp`` out of ``mj_step``, which is harmless across native frames but corrupts
 the interpreter when it crosses a Python frame.
 
-For fields that publish native tables (``mjrft._native``), the guard also runs the field's whole
-pass natively for every MjData already registered, and enters Python only for an MjData seen for
-the first time (the field registers it) or when the native pass reports a problem (Python then
-raises). Python-only fields (user callables) take the trampoline on every pass.
+For fields of compiled media, the guard also runs the field's whole pass natively
+(``mjrft.field.passive.step``) for every MjData already registered, and enters Python only for an
+MjData seen for the first time (the field registers it) or when the pass reports a problem (Python
+then raises, naming the body, from the status the pass left). Fields of media given by Python
+callables take the trampoline on every pass.
 
 State here is the registry of installed fields and registered MjData, mutated only by the
 functions below under a lock, and restored to exactly what it found on the last uninstall
@@ -59,7 +60,8 @@ def _build_guard(trampoline_address: int):
     from numba import cfunc, types
     from numba.extending import intrinsic
 
-    from mjrft.field import native as _native
+    from mjrft.field import passive
+    from mjrft.field.tables import u64_ptr
 
     @intrinsic
     def _address(typingctx, ptr):
@@ -74,11 +76,12 @@ def _build_guard(trampoline_address: int):
     trampoline = proto(trampoline_address)
     registry_address = np.uint64(_registry.ctypes.data)
     datas_address = np.uint64(_datas.ctypes.data)
-    step = _native.step
+    step = passive.step
+    installed, ok = passive.INSTALLED, passive.OK
 
     @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
     def guard(m, d):
-        reg = _native.u64_ptr(registry_address)
+        reg = u64_ptr(registry_address)
         key = _address(m)
         table = np.uint64(0)
         found = False
@@ -90,11 +93,11 @@ def _build_guard(trampoline_address: int):
         if not found:
             return
         if table != 0:
-            dat = _native.u64_ptr(datas_address)
+            dat = u64_ptr(datas_address)
             dkey = _address(d)
             for j in range(dat[0]):
                 if dat[1 + 3 * j] == dkey and dat[2 + 3 * j] == key:
-                    if step(table, dat[3 + 3 * j]) == _native.OK:
+                    if step(table, dat[3 + 3 * j], installed) == ok:
                         return
                     break
         trampoline(m, d)
@@ -126,8 +129,9 @@ def install(
 ) -> None:
     """Route the passive callback of `model` to handler(m, d) until ``uninstall(model)``.
 
-    native_table: address of the field's ``mjrft._native`` table (0: Python only). With it,
-    registered MjData are handled natively; handler sees the others and any reported problem.
+    native_table: address of the field's static record (``mjrft.field.tables``; 0: Python
+    only). With it, registered MjData are handled natively; handler sees the others and any
+    reported problem.
     """
     with _lock:
         key = model._address

@@ -1,12 +1,12 @@
-"""Low-speed treatment: a velocity-level stick/slip step for RFT's rate-independent forces.
+"""Low-speed treatment of free bodies: a velocity-level stick/slip step for RFT's forces.
 
 Why: an RFT force depends on the direction of motion, not on the speed (DESIGN.md section 2).
 Near rest it is set-valued, like Coulomb friction: every wrench the medium can supply for some
 direction of motion is a possible reaction of a body at rest. An explicit step evaluates it at
 the current direction only, so a body that the medium could stop within one step overshoots
 through zero velocity, the force flips, and the body chatters, creeps or gains energy
-(benchmarks/RESULTS.md, "Stability map"). Smoothing the force in time (exponential filters) or in
-speed (a viscous zone) lags or distorts it for moving bodies; linearising it implicitly does not
+(docs/stability.md). Smoothing the force in time (exponential filters) or in speed (a viscous
+zone) lags or distorts it for moving bodies; linearising it implicitly does not
 help either: the force is homogeneous of degree 0 in the velocity, so its Jacobian times the
 velocity vanishes (Euler's theorem) and an implicit step can turn the velocity but never stop it.
 
@@ -22,7 +22,7 @@ known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
    it is slow and moving, where RFT is stiff across the motion: W depends on the direction
    only, so a tilt or sideways drift of size e changes W by ~|W| e / |xi|, and an explicit
    step of such a mode overshoots and grows at the step frequency (an upright ellipsoid
-   lowered slowly rocked and tipped over; benchmarks/RESULTS.md, "Rocking"). Such a body gets
+   lowered slowly rocked and tipped over; docs/stability.md, "Rocking"). Such a body gets
    the wrench of one Newton step of backward Euler, ``W(xi) + J d`` (:func:`implicit_wrench`):
    explicit along the motion (J xi = 0), implicit across it. Where that would reverse the
    motion within the step or gain energy over it, step 3 decides instead.
@@ -45,44 +45,40 @@ on the whole twist, so translation and rotation stick together (testing them sep
 tried and rejected: a torque that translation causes was then applied to a stuck body and spun
 it up). ``reach`` scales the predicted velocity change and is the only knob (1: the exact
 time-stepping boundary; larger values hand more of the slow motion to steps 2 (implicit) and 3;
-default 4). The
-treatment needs the body's own inertia and every force on it, so it applies to free rigid bodies
-(a free joint, no jointed or massive descendants); bodies in mechanisms feel the pure model,
+default 4). The treatment needs the body's own inertia and every force on it, so it applies to
+free rigid bodies (a free joint, no jointed or massive descendants); bodies in mechanisms feel the pure model,
 since their actuator and constraint forces are not known when the field runs (MuJoCo computes
 them after the passive forces).
 
 Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and
-wrenches (force [N], torque about the CoM [N m]), both in world coordinates. Pure NumPy (the slow
-reference of the compiled version in ``mjrft._native``); imports no mujoco.
+wrenches (force [N], torque about the CoM [N m]), both in world coordinates. Compiled; the
+arguments ``m``, ``d``, ``s`` are the field's tables, the MjData's arrays and the field's state
+for that MjData (``mjrft.field.tables``). ``tests/lowspeed_reference.py`` states the same rules
+plainly in NumPy, and the tests check this code against it.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
+
+from mjrft.field.evaluate import in_play, twist_wrench
 
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
-#: Default ``reach``. Measured in the third session, before the implicit step (benchmarks/
-#: RESULTS.md, "RK4 and the reach"; settle 1.5 s, hold
-#: 2 s, 60 cells per integrator and release): with slip limited to forces that do no work over
-#: the step, reaches 1, 4, 8 settle every dropped RK4 body and 49, 56, 58 of 60 slowly lowered
-#: ones; 4 and 8 also every Euler/implicitfast body; no thrown body gains energy at any of them
-#: (the 10 s map at reach 4: benchmarks/RESULTS.md, "Stability map"). 4 rather than 8: the
-#: treatment's speed scale (a body counts as slow while its motion would reverse within
-#: ``reach`` steps) stays small, so the pure model keeps more motion.
+#: Default ``reach``. With slip limited to forces that do no work over the step, reaches 1, 4
+#: and 8 settle every dropped RK4 body of the stability map and 49, 56, 58 of 60 slowly lowered
+#: ones; 4 and 8 also every Euler/implicitfast body (docs/stability.md, "The reach"). 4 rather
+#: than 8: the speed below which a body counts as slow (its motion would reverse within
+#: ``reach`` steps) stays small, so the pure model keeps more of the motion.
 DEFAULT_REACH = 4.0
 #: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
 #: stuck or slipped, or whose motion would reverse within this many steps of the change
-#: predicted at the step's start; a body moved by the implicit step keeps the first stage's
-#: twist and correction; other bodies feel the pure model in every stage
-#: (mjrft._native.rk4_hold).
-#: Measured at reach 1 with the earlier slip rule (benchmarks/RESULTS.md): 2, 4, 8 settle 38,
-#: 46, 51 of 60 slowly lowered RK4 cells (all drops settle), but with 2 and 8 a thrown spinning
-#: body gained energy in a step.
+#: predicted at the step's start (mjrft.field.rk4). Measured at reach 1: 2, 4, 8 settle 38, 46,
+#: 51 of 60 slowly lowered RK4 cells (all drops settle), but with 2 and 8 a thrown spinning body
+#: gained energy in a step (docs/stability.md, "RK4").
 RK4_HOLD_STEPS = 4.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
 #: force of the free direction, the pure model linearised implicitly (slow moving body).
@@ -92,8 +88,13 @@ PURE, STICK, SLIP, IMPLICIT = 0, 1, 2, 3
 #: where it turns from trailing to leading, so the tangent of the summed force is noisy; 0.1
 #: and 0.01 give transverse eigenvalues within 7 % of each other on the mole-crab ellipsoid.
 JACOBIAN_STEP = 0.1
-#: Relative size below which an energy balance counts as zero (its terms cancel; ~300 eps).
-ROUNDING = 64.0 * np.finfo(float).eps
+#: Relative size below which an energy balance counts as zero (its terms cancel; ~300 eps):
+#: Euler's balance of a passive stick is exactly -|xi|^2_M / dt, but at rest it rounds to
+#: +1e-22, and a stick fraction of 1 - 1e-16 would leave the body creeping.
+ROUNDING = 64.0 * np.finfo(np.float64).eps
+# Counters in FieldData.stats (tables.STATS) of the three treated decisions.
+_STAT_OF = (-1, 3, 4, 5)
+_JIT = {"cache": True, "error_model": "numpy"}
 
 
 @dataclass(frozen=True)
@@ -122,263 +123,358 @@ class LowSpeed:
         return self.mode != "off"
 
 
-def inertia_dot(a: np.ndarray, b: np.ndarray, mass: float, inertia: np.ndarray) -> float:
-    """Kinetic-energy inner product m a_lin . b_lin + a_ang . I b_ang of two (6,) twists."""
-    return float(mass * (a[:3] @ b[:3]) + a[3:] @ (inertia @ b[3:]))
+@numba.njit(**_JIT)
+def m_dot(a, b, mass, iw):
+    """<a, b>_M = m a_lin . b_lin + a_ang . Iw b_ang of two (6,) twists (Iw: world axes)."""
+    s = mass * (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+    for r in range(3):
+        for c in range(3):
+            s += a[3 + r] * iw[r, c] * b[3 + c]
+    return s
 
 
-def keeps_sense(
-    pure: np.ndarray,
-    twist: np.ndarray,
-    mass: float,
-    inertia: np.ndarray,
-    other: np.ndarray,
-    dt: float,
-    steps: float,
-) -> bool:
-    """True if the twist keeps its sense under ``steps`` times the change predicted for a step.
-
-    ``<xi + steps dt M^-1 (f + W(xi)), xi>_M > 0``; arguments as in :func:`treat` (world frame,
-    twists [m/s, rad/s], wrenches [N, N m] about the CoM). With ``steps = reach`` this is the
-    treatment's first test; with ``RK4_HOLD_STEPS`` it decides which bodies an RK4 step holds.
-    """
-    twist = np.asarray(twist, dtype=float)
-    change = np.asarray(pure, dtype=float) + np.asarray(other, dtype=float)
-    accel = np.concatenate([change[:3] / mass, np.linalg.solve(inertia, change[3:])])
-    probe = twist + steps * dt * accel
-    return inertia_dot(probe, twist, mass, inertia) > 0.0
-
-
-def _mass_matrix(mass: float, inertia: np.ndarray) -> np.ndarray:
-    """(6, 6) block diagonal of m I_3 and the (3, 3) inertia (world axes)."""
-    mm = np.zeros((6, 6))
-    mm[:3, :3] = mass * np.eye(3)
-    mm[3:, 3:] = inertia
-    return mm
+@numba.njit(**_JIT)
+def solve6(a, rhs):
+    """Solve a (6, 6) x = rhs (6,) by Gaussian elimination with partial pivoting (a, rhs are
+    overwritten); returns x (non-finite if a is singular)."""
+    n = 6
+    for k in range(n):
+        p = k
+        for r in range(k + 1, n):
+            if abs(a[r, k]) > abs(a[p, k]):
+                p = r
+        if p != k:
+            for c in range(n):
+                a[k, c], a[p, c] = a[p, c], a[k, c]
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+        for r in range(k + 1, n):
+            f = a[r, k] / a[k, k]
+            for c in range(k, n):
+                a[r, c] -= f * a[k, c]
+            rhs[r] -= f * rhs[k]
+    x = np.empty(n)
+    for k in range(n - 1, -1, -1):
+        s = rhs[k]
+        for c in range(k + 1, n):
+            s -= a[k, c] * x[c]
+        x[k] = s / a[k, k]
+    return x
 
 
-def stiff(
-    pure: np.ndarray,
-    twist: np.ndarray,
-    mass: float,
-    inertia: np.ndarray,
-    dt: float,
-    steps: float,
-) -> bool:
-    """True if the medium alone could change the twist by its whole size within ``steps`` steps:
-    ``steps dt |M^-1 W(xi)|_M >= |xi|_M``. Arguments as in :func:`treat` (world frame).
-
-    Why: W is homogeneous of degree 0, so its Jacobian across the motion scales as |W| / |xi|;
-    an explicit step of a transverse mode (a tilt, a sideways drift) overshoots once
-    dt |M^-1 J| passes ~1 and grows at the step frequency once it passes 2 (benchmarks/RESULTS.md,
-    "Rocking"). A body this test flags is moved with the linearly implicit force instead.
-    """
-    mm = _mass_matrix(mass, inertia)
-    twist = np.asarray(twist, dtype=float)
-    pure = np.asarray(pure, dtype=float)
-    w_norm2 = float(pure @ np.linalg.solve(mm, pure))
-    return (steps * dt) ** 2 * w_norm2 >= float(twist @ mm @ twist)
-
-
-def transverse_basis(twist: np.ndarray, mass: float, inertia: np.ndarray) -> np.ndarray:
-    """(5, 6) twists, orthonormal in <., .>_M and M-orthogonal to ``twist`` (world frame).
-
-    Gram-Schmidt from the twist's direction over the coordinate axes scaled to unit M-norm,
-    taking at each round the axis with the largest remainder (so none is nearly dependent).
-    """
-    mm = _mass_matrix(mass, inertia)
-    basis = [np.asarray(twist, dtype=float) / math.sqrt(float(twist @ mm @ twist))]
-    axes = [np.eye(6)[j] / math.sqrt(mm[j, j]) for j in range(6)]
-    for _ in range(5):
-        best, best_n = None, -1.0
-        for a in axes:
-            r = a - sum(float(u @ mm @ a) * u for u in basis)
-            rn = math.sqrt(max(float(r @ mm @ r), 0.0))
-            if rn > best_n:
-                best, best_n = r, rn
-        basis.append(best / best_n)
-    return np.array(basis[1:])
-
-
-def step_work(
-    w: np.ndarray,
-    twist: np.ndarray,
-    end: np.ndarray,
-    other: np.ndarray,
-    mass: float,
-    dt: float,
-    semi_implicit: bool,
-) -> float:
+@numba.njit(**_JIT)
+def step_work(w, twist, end, other, mass, dt, semi):
     """2 / dt times the mechanical energy a step gains with the medium's wrench w (a guard).
 
     The trapezoid ``w . (xi + xi_end)``: over a step with constant forces the kinetic energy
     changes by ``dt/2 (w + other) . (xi + xi_end)``, and RK4 moves the body along that mean
     twist, so the work of the other forces cancels with their potential. MuJoCo's Euler,
-    implicit and implicitfast (``semi_implicit``) move it with the end twist instead
-    (semi-implicit Euler), so a constant force F_c (gravity, the user's force) does
-    ``dt F_c . v_end`` of work while the kinetic energy counts ``dt/2 F_c . (v + v_end)``:
-    the balance gains ``-dt^2/(2m) F_c . (F_c + f)``, f the medium's force. That is positive
-    when the medium decelerates a sinking body (F_c down, F_c + f up) and is the gain the
-    slow-lowering map flagged (benchmarks/RESULTS.md, "Euler's energy balance and RK4's
-    stick"); the rotation has no potential and keeps the trapezoid. Arguments: (6,) wrench,
-    start and end twists and the other wrenches, world frame, as in :func:`treat`; mass [kg];
-    dt [s].
+    implicit and implicitfast (``semi``) move it with the end twist instead (semi-implicit
+    Euler), so a constant force F_c (gravity, the user's force) does ``dt F_c . v_end`` of work
+    while the kinetic energy counts ``dt/2 F_c . (v + v_end)``: the balance gains
+    ``-dt^2/(2m) F_c . (F_c + f)``, f the medium's force, positive when the medium decelerates
+    a sinking body (docs/stability.md, "Energy balances"). The rotation has no potential and
+    keeps the trapezoid. (6,) wrench w, start and end twists, the other wrenches; world frame;
+    mass [kg]; dt [s].
     """
-    p = float(np.asarray(w, dtype=float) @ (np.asarray(twist) + np.asarray(end)))
-    if semi_implicit:
-        fc = np.asarray(other, dtype=float)[:3]
-        p -= dt * float(fc @ (fc + np.asarray(w, dtype=float)[:3])) / mass
+    p = 0.0
+    for c in range(6):
+        p += w[c] * (twist[c] + end[c])
+    if semi:
+        q = 0.0
+        for c in range(3):
+            q += other[c] * (other[c] + w[c])
+        p -= dt * q / mass
     return p
 
 
-def implicit_wrench(
-    pure: np.ndarray,
-    wrench_at: Callable[[np.ndarray], np.ndarray],
-    twist: np.ndarray,
-    mass: float,
-    inertia: np.ndarray,
-    other: np.ndarray,
-    dt: float,
-    semi_implicit: bool = False,
-) -> np.ndarray | None:
-    """The medium's wrench of a linearly implicit (one Newton step of backward Euler), or None.
-
-    ``(M - dt J') d = M (xi_e - c xi)`` and the wrench ``W(xi) + J' d``: xi_e = xi + dt M^-1
-    (f + W(xi)) is the explicit step's end, c = |xi_e|_M / |xi|_M, J' = J / c the Jacobian at
-    c xi (with c = 1 this is ``(M - dt J) d = dt (f + W)``, Rosenbrock-Euler). J is the medium's
-    Jacobian at xi from secants along the 5 transverse directions of :func:`transverse_basis`
-    (J xi = 0 exactly: W is homogeneous of degree 0, Euler's theorem; so 5 evaluations, not 6).
-    Along the motion this is the explicit step (stopping is the stick's job); across it, the
-    step is backward Euler, which damps the stiff transverse modes instead of amplifying them.
-    None (the treatment's step 3 decides) if the result is not finite, reverses the motion
-    within the step, or gains energy over the step (:func:`step_work`). Arguments as in
-    :func:`treat` (world frame; wrenches about the CoM).
-    """
-    twist = np.asarray(twist, dtype=float)
-    pure = np.asarray(pure, dtype=float)
-    other = np.asarray(other, dtype=float)
-    mm = _mass_matrix(mass, inertia)
-    n = math.sqrt(float(twist @ mm @ twist))
-    h = JACOBIAN_STEP * n
-    jac = np.zeros((6, 6))
-    for u in transverse_basis(twist, mass, inertia):
-        dw = (np.asarray(wrench_at(twist + h * u), dtype=float) - pure) / h
-        jac += np.outer(dw, mm @ u)
-    end_pure = twist + np.linalg.solve(mm, dt * (other + pure))
-    # Linearise at c xi, c = |xi_end|_M / |xi|_M of the explicit step: the same direction (so
-    # the same W) at the speed the step ends with, where the Jacobian is J / c (degree -1). A
-    # body speeding up from rest (c >> 1) is otherwise linearised far outside J's validity.
-    c = math.sqrt(max(float(end_pure @ mm @ end_pure), 0.0)) / n
-    if not c > 0.0:
-        return None
-    jac /= c
-    d_xi = np.linalg.solve(mm - dt * jac, mm @ (end_pure - c * twist))
-    f = pure + jac @ d_xi
-    if not np.all(np.isfinite(f)):
-        return None
-    end = twist + np.linalg.solve(mm, dt * (other + f))
-    if float(end @ mm @ twist) <= 0.0:
-        return None
-    if step_work(f, twist, end, other, mass, dt, semi_implicit) > 0.0:
-        return None
-    return f
-
-
-def treat(
-    pure: np.ndarray,
-    wrench_at: Callable[[np.ndarray], np.ndarray],
-    twist: np.ndarray,
-    mass: float,
-    inertia: np.ndarray,
-    other: np.ndarray,
-    dt: float,
-    reach: float = DEFAULT_REACH,
-    implicit: bool = True,
-    semi_implicit: bool = False,
-) -> tuple[np.ndarray, int]:
-    """The wrench the medium applies to one free rigid body over a step, and the decision.
-
-    Args:
-      pure: (6,) RFT wrench at the current twist (force [N], torque about the CoM [N m]), world.
-      wrench_at: maps a (6,) twist (world, as ``twist``) to the RFT wrench at that twist.
-      twist: (6,) linear velocity of the CoM [m/s] then angular velocity [rad/s], world.
-      mass: [kg] (> 0). inertia: (3, 3) inertia about the CoM [kg m^2], world axes (SPD).
-      other: (6,) every other wrench on the body over the step [N, N m], world, about the CoM.
-      dt: step [s] (> 0). reach: see the module docstring.
-      implicit: False keeps the pure model for slow moving bodies (step 2): the explicit
-        step, which rocks a slowly sinking body (benchmarks/RESULTS.md, "Rocking"). The field
-        always passes True; under RK4 its later stages keep the first stage's twist and
-        implicit correction (mjrft._native.rk4_hold).
-      semi_implicit: True where positions advance with the step's end velocity (MuJoCo's
-        Euler, implicit, implicitfast), False for RK4: the energy balance the implicit and
-        slip guards use (:func:`step_work`). The field passes the model's integrator.
-    Returns:
-      (wrench (6,), decision): decision is PURE, STICK, SLIP or IMPLICIT.
-    """
-    twist = np.asarray(twist, dtype=float)
-    pure = np.asarray(pure, dtype=float)
-    other = np.asarray(other, dtype=float)
-
-    def m_inv(w: np.ndarray) -> np.ndarray:
-        return np.concatenate([w[:3] / mass, np.linalg.solve(inertia, w[3:])])
-
-    v_free = twist + dt * m_inv(other)
-    if keeps_sense(pure, twist, mass, inertia, other, dt, reach):
-        if not (implicit and stiff(pure, twist, mass, inertia, dt, reach)):
-            return pure.copy(), PURE
-        f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt, semi_implicit)
-        if f is not None:
-            return f, IMPLICIT
-        # Implicitly the motion would reverse within the step (or gain work): step 3 decides.
-    n2 = inertia_dot(v_free, v_free, mass, inertia)
-    if n2 > 0.0:
-        r = np.asarray(wrench_at(v_free), dtype=float)
-        if dt * -float(r @ v_free) < n2:
-            # Slip only where R adds no energy over the step (step_work: the trapezoid of the
-            # power, plus semi-implicit Euler's term); else the pure model where it keeps the
-            # motion's sense within this step, else stick.
-            end = v_free + dt * m_inv(r)
-            if step_work(r, twist, end, other, mass, dt, semi_implicit) <= 0.0:
-                return r, SLIP
-            if keeps_sense(pure, twist, mass, inertia, other, dt, 1.0):
-                return pure.copy(), PURE
-    stick = np.concatenate([-mass * v_free[:3], -(inertia @ v_free[3:])]) / dt
-    return stick * stick_fraction(stick, twist, other, mass, n2, dt, semi_implicit), STICK
-
-
-def stick_fraction(
-    stick: np.ndarray,
-    twist: np.ndarray,
-    other: np.ndarray,
-    mass: float,
-    n2: float,
-    dt: float,
-    semi_implicit: bool,
-) -> float:
+@numba.njit(**_JIT)
+def stick_fraction(stick, twist, other, mass, n2, dt, semi):
     """The largest fraction lam in [0, 1] of the stick wrench that adds no energy over the step.
 
     The full stick (lam = 1) ends the step at rest. Under RK4 the body still moves by dt xi / 2
     over the step, so a body rising slowly against gravity (|v| < g dt) gains more potential
-    energy than the kinetic energy the stick takes (the RK4 flags of the slow lowering;
-    benchmarks/RESULTS.md, "Euler's energy balance and RK4's stick"). The wrench lam S ends at
-    (1 - lam) xi_free and its :func:`step_work` is the quadratic ``(n2/dt) lam^2 + B lam + C``
-    with C <= 0, so the largest root is the answer when lam = 1 would gain; with RK4 it is
-    ``1 - dt (S . xi) / n2``.
-    Under Euler a passive body's stick never gains (its position does not move). Arguments:
-    stick (6,) = -M xi_free / dt, twist (6,), other (6,), world frame as in :func:`treat`;
-    n2 = |xi_free|^2_M [kg m^2/s^2] (twice a kinetic energy); mass [kg]; dt [s].
+    energy than the kinetic energy the stick takes. The wrench lam S ends at (1 - lam) xi_free
+    and its :func:`step_work` is the quadratic ``(n2/dt) lam^2 + B lam + C`` with C <= 0, so the
+    largest root is the answer when lam = 1 would gain; with RK4 it is ``1 - dt (S . xi) / n2``.
+    Under Euler a passive body's stick never gains. stick (6,) = -M xi_free / dt, twist (6,),
+    other (6,), world frame; n2 = |xi_free|^2_M [kg m^2/s^2]; mass [kg]; dt [s].
     """
-    fc = np.asarray(other, dtype=float)[:3] if semi_implicit else np.zeros(3)
-    # Rounding: Euler's balance of a passive stick is exactly -|xi|^2_M / dt <= 0, but its terms
-    # cancel; at rest it rounds to +1e-22 and a fraction 1 - 1e-16 would leave the body creeping.
-    size = float(
-        np.abs(stick) @ np.abs(twist) + dt * np.abs(fc) @ (np.abs(fc) + np.abs(stick[:3])) / mass
-    )
-    if step_work(stick, twist, np.zeros(6), other, mass, dt, semi_implicit) <= ROUNDING * size:
+    size = 0.0  # the balance's terms cancel: rounding counts as zero (ROUNDING)
+    for c in range(6):
+        size += abs(stick[c] * twist[c])
+    if semi:
+        for c in range(3):
+            size += dt * abs(other[c]) * (abs(other[c]) + abs(stick[c])) / mass
+    if step_work(stick, twist, np.zeros(6), other, mass, dt, semi) <= ROUNDING * size:
         return 1.0
     a2 = n2 / dt
-    b1 = float(stick @ twist) - a2 - dt * float(fc @ stick[:3]) / mass
-    c0 = -dt * float(fc @ fc) / mass
-    root = math.sqrt(b1 * b1 - 4.0 * a2 * c0)
+    b1 = -a2
+    c0 = 0.0
+    for c in range(6):
+        b1 += stick[c] * twist[c]
+    if semi:
+        for c in range(3):
+            b1 -= dt * other[c] * stick[c] / mass
+            c0 -= dt * other[c] * other[c] / mass
+    root = np.sqrt(b1 * b1 - 4.0 * a2 * c0)
     lam = -2.0 * c0 / (b1 + root) if b1 > 0.0 else (root - b1) / (2.0 * a2)
     return min(max(lam, 0.0), 1.0)
+
+
+@numba.njit(**_JIT)
+def transverse_basis(twist, mass, iw, mm, n):
+    """(6, 6): row 0 the twist's unit direction, rows 1-5 orthonormal in <., .>_M and
+    M-orthogonal to it (pivoted Gram-Schmidt over the coordinate axes scaled to unit M-norm,
+    taking at each round the axis with the largest remainder). n = |twist|_M."""
+    basis = np.empty((6, 6))
+    basis[0] = twist / n
+    axis = np.empty(6)
+    res = np.empty(6)
+    best = np.empty(6)
+    for k in range(1, 6):
+        best_n = -1.0
+        for j in range(6):
+            axis[:] = 0.0
+            axis[j] = 1.0 / np.sqrt(mm[j, j])
+            res[:] = axis
+            for q in range(k):
+                res -= m_dot(basis[q], axis, mass, iw) * basis[q]
+            rn = np.sqrt(max(m_dot(res, res, mass, iw), 0.0))
+            if rn > best_n:
+                best_n = rn
+                best[:] = res
+        basis[k] = best / best_n
+    return basis
+
+
+@numba.njit(**_JIT)
+def implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
+    """One Newton step of backward Euler across the motion: replaces w (6,) (the pure wrench at
+    twist) and returns True, or leaves it and returns False.
+
+    ``(M - dt J') d = M (xi_e - c xi)`` and the wrench ``W(xi) + J' d``: xi_e = xi + dt M^-1
+    (f + W(xi)) is the explicit step's end, c = |xi_e|_M / |xi|_M, J' = J / c the Jacobian at
+    c xi. J comes from secants along the 5 transverse directions (J xi = 0 exactly: W is
+    homogeneous of degree 0, Euler's theorem). Linearised at c xi, the same direction at the
+    speed the step ends with, because a body speeding up from rest (c >> 1) is otherwise
+    linearised far outside J's validity. False (step 3 of the treatment decides) if the result
+    is not finite, reverses the motion within the step, or gains energy over it. twist, other
+    (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse.
+    """
+    mm = np.zeros((6, 6))
+    for c in range(3):
+        mm[c, c] = mass
+        for r in range(3):
+            mm[3 + r, 3 + c] = iw[r, c]
+    n = np.sqrt(m_dot(twist, twist, mass, iw))
+    basis = transverse_basis(twist, mass, iw, mm, n)
+    h = m.jacobian_step * n
+    jac = np.zeros((6, 6))
+    probe = np.empty(6)
+    pw = np.empty(6)
+    for q in range(1, 6):
+        for c in range(6):
+            probe[c] = twist[c] + h * basis[q, c]
+        twist_wrench(m, d, s, k, probe[:3], probe[3:], pw)
+        mu = mm @ basis[q]
+        for r in range(6):
+            dw = (pw[r] - w[r]) / h
+            for c in range(6):
+                jac[r, c] += dw * mu[c]
+    end_pure = np.empty(6)
+    epa = dt * (ii @ (other[3:] + w[3:]))
+    for c in range(3):
+        end_pure[c] = twist[c] + dt * (other[c] + w[c]) / mass
+        end_pure[3 + c] = twist[3 + c] + epa[c]
+    cs = np.sqrt(max(m_dot(end_pure, end_pure, mass, iw), 0.0)) / n
+    if not cs > 0.0:
+        return False
+    jac /= cs
+    a = mm - dt * jac
+    rhs = mm @ (end_pure - cs * twist)
+    d_xi = solve6(a, rhs)
+    f = w + jac @ d_xi
+    for c in range(6):
+        if not np.isfinite(f[c]):
+            return False
+    end = np.empty(6)  # guards: the motion keeps its sense, no energy added over the step
+    ea = dt * (ii @ (other[3:] + f[3:]))
+    for c in range(3):
+        end[c] = twist[c] + dt * (other[c] + f[c]) / mass
+        end[3 + c] = twist[3 + c] + ea[c]
+    if m_dot(end, twist, mass, iw) <= 0.0:
+        return False
+    if step_work(f, twist, end, other, mass, dt, semi) > 0.0:
+        return False
+    w[:] = f
+    return True
+
+
+@numba.njit(**_JIT)
+def world_inertia(x, inertia):
+    """(3, 3) inertia about the CoM in world axes, X diag(I) X^T, and its inverse, from the
+    inertial frame x (3, 3) (ximat) and the principal moments (3,) [kg m^2]."""
+    iw = np.empty((3, 3))
+    ii = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            a = 0.0
+            ai = 0.0
+            for q in range(3):
+                a += x[r, q] * inertia[q] * x[c, q]
+                ai += x[r, q] * x[c, q] / inertia[q]
+            iw[r, c] = a
+            ii[r, c] = ai
+    return iw, ii
+
+
+@numba.njit(**_JIT)
+def com_velocity(m, d, k):
+    """(3,) world velocity [m/s] of tagged body k's CoM: cvel's linear part is at the subtree
+    CoM of the body's root (DESIGN.md section 3)."""
+    b = m.tbody_bodyid[k]
+    om = d.cvel[b, :3]
+    c0 = d.subtree_com[m.tbody_rootid[k]]
+    rx, ry, rz = d.xipos[b, 0] - c0[0], d.xipos[b, 1] - c0[1], d.xipos[b, 2] - c0[2]
+    v = np.empty(3)
+    v[0] = d.cvel[b, 3] + om[1] * rz - om[2] * ry
+    v[1] = d.cvel[b, 4] + om[2] * rx - om[0] * rz
+    v[2] = d.cvel[b, 5] + om[0] * ry - om[1] * rx
+    return v
+
+
+@numba.njit(**_JIT)
+def gravity(m, b):
+    """(3,) gravity acceleration [m/s^2] on body b, world frame (flag and compensation live)."""
+    g = np.zeros(3)
+    if m.opt_disableflags[0] & m.dsbl_gravity:
+        return g
+    comp = m.body_gravcomp[b]
+    for c in range(3):
+        g[c] = m.opt_gravity[c] * (1.0 - comp)
+    return g
+
+
+@numba.njit(**_JIT)
+def treat_body(m, d, s, k, user, dt, semi, w, ab, tw):
+    """The low-speed treatment of tagged body k (a free rigid body); returns its decision.
+
+    w (6,): the body's pure RFT wrench, replaced by the treated one. user (6,): the other
+    applied wrench on the body (the user's xfrc_applied row). ab (2,): set to |xi|^2_M and
+    <d_xi, xi>_M (the motion keeps its sense over n steps if ab[0] + n ab[1] > 0). tw (6,): set
+    to the body's twist (v at the CoM, omega). semi: positions advance with the step's end
+    velocity (every integrator but RK4; :func:`step_work`). World frame, torques about the CoM.
+    """
+    b = m.tbody_bodyid[k]
+    mass = m.body_mass[b]
+    inertia = m.body_inertia[b]
+    if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
+        return PURE
+    gvec = gravity(m, b)
+    reach = m.reach
+    iw, ii = world_inertia(d.ximat[b], inertia)
+    om = d.cvel[b, :3]
+    v = com_velocity(m, d, k)
+    for c in range(3):
+        tw[c] = v[c]
+        tw[3 + c] = om[c]
+    iom = iw @ om
+    # Other wrenches over the step: gravity, the user's row, the gyroscopic torque -w x Iw.
+    tau = np.empty(3)
+    tau[0] = user[3] - (om[1] * iom[2] - om[2] * iom[1])
+    tau[1] = user[4] - (om[2] * iom[0] - om[0] * iom[2])
+    tau[2] = user[5] - (om[0] * iom[1] - om[1] * iom[0])
+    v_free = np.empty(3)
+    for c in range(3):
+        v_free[c] = v[c] + dt * (gvec[c] + user[c] / mass)
+    om_free = om + dt * (ii @ tau)
+    dom_pure = dt * (ii @ w[3:])
+    # <probe, xi>_M = |xi|^2_M + reach <d_xi, xi>_M, d_xi the predicted change over the step.
+    sq = mass * (v @ v) + om @ iom
+    dxi = 0.0
+    for c in range(3):
+        dxi += (v_free[c] - v[c] + dt * w[c] / mass) * mass * v[c]
+    dxi += (om_free - om + dom_pure) @ iom
+    ab[0] = sq
+    ab[1] = dxi
+    twist = np.empty(6)
+    other = np.empty(6)
+    for c in range(3):
+        twist[c] = v[c]
+        twist[3 + c] = om[c]
+        other[c] = mass * gvec[c] + user[c]
+        other[3 + c] = tau[c]
+    if sq + reach * dxi > 0.0:
+        # Stiff across the motion: (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M (module docstring, 2).
+        wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
+        if (reach * dt) ** 2 * wn2 < sq or not m.jacobian_step > 0.0:
+            return PURE
+        if implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
+            return IMPLICIT
+        # Implicitly the motion would reverse within the step (or gain work): decide below.
+    return stick_or_slip(m, d, s, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w,
+                         sq + dxi > 0.0)  # fmt: skip
+
+
+@numba.njit(**_JIT)
+def stick_or_slip(m, d, s, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w, keeps):
+    """Step 3 of the treatment (module docstring): slip on R = W(xi_free) if it cannot stop the
+    free motion within the step and adds no energy; else the pure model w if the motion keeps
+    its sense within this step (``keeps``); else stick. Returns the decision; sets w (6,)."""
+    n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
+    if n2 > 0.0:
+        rw = np.zeros(6)
+        twist_wrench(m, d, s, k, v_free, om_free, rw)
+        diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
+        diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
+        if dt * diss < n2:
+            om_end = om_free + dt * (ii @ rw[3:])
+            end = np.empty(6)
+            for c in range(3):
+                end[c] = v_free[c] + dt * rw[c] / mass
+                end[3 + c] = om_end[c]
+            if step_work(rw, twist, end, other, mass, dt, semi) <= 0.0:
+                for c in range(6):
+                    w[c] = rw[c]
+                return SLIP
+            if keeps:
+                return PURE
+    iomf = iw @ om_free
+    for c in range(3):
+        w[c] = -mass * v_free[c] / dt
+        w[3 + c] = -iomf[c] / dt
+    lam = stick_fraction(w, twist, other, mass, n2, dt, semi)
+    for c in range(6):
+        w[c] *= lam
+    return STICK
+
+
+@numba.njit(**_JIT)
+def treat_all(m, d, s, user):
+    """The low-speed treatment of every treatable tagged body with a geom in play.
+
+    s.wrench rows hold the pure RFT wrenches and are replaced where treated; user (nbody, 6):
+    the other applied wrenches. Sets s.decision, s.slow (an RK4 step must not evaluate the
+    pure model in its later stages: treated, or reversing within rk4_hold_steps) and s.frozen
+    (stage 1's twist and implicit correction of bodies moved by the implicit step).
+    """
+    dt = m.opt_timestep[0]
+    semi = m.opt_integrator[0] != m.int_rk4
+    for k in range(m.tbody_bodyid.shape[0]):
+        b = m.tbody_bodyid[k]
+        s.slow[k] = False
+        if not m.tbody_treat[k] or not dt > 0.0:
+            continue
+        if not in_play(m, s, k):  # nothing of the body can touch the medium: nothing to treat
+            continue
+        ab = np.zeros(2)
+        pure = s.wrench[b].copy()
+        dec = treat_body(m, d, s, k, user[b], dt, semi, s.wrench[b], ab, s.frozen[k, :6])
+        for c in range(6):  # only a body moved by the implicit step keeps a record
+            s.frozen[k, 6 + c] = s.wrench[b, c] - pure[c] if dec == IMPLICIT else 0.0
+            if dec != IMPLICIT:
+                s.frozen[k, c] = 0.0
+        s.decision[k] = dec
+        s.slow[k] = dec != PURE or ab[0] + m.rk4_hold_steps * ab[1] <= 0.0
+        if dec != PURE:
+            s.stats[_STAT_OF[dec]] += 1

@@ -1,0 +1,190 @@
+"""A field's static tables, built once from a compiled MjModel and its scene.
+
+The tagged geoms are meshed once (``mjrft.field.scene.geom_elements``), moved into their body's
+frame, and laid out for the compiled pass (``tables.FieldModel``): elements grouped by geom,
+geoms by body, bodies in id order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from mjrft.core.elements import ElementSet
+from mjrft.field import layout, lowspeed
+from mjrft.field.scene import Intruder, Scene, geom_elements
+from mjrft.field.tables import MODEL_RECORD, FieldModel, pack
+
+
+@dataclass(frozen=True, eq=False)
+class BodyElements:
+    """All tagged elements of one body, in the body frame (built once at load).
+
+    Attributes:
+      body: body id; name: body name.
+      centroids: (n, 3) [m], normals: (n, 3) unit, areas: (n,) [m^2]; body frame.
+      geoms: (k,) tagged geom ids; segments: (k + 1,) element offsets of each geom's block.
+    """
+
+    body: int
+    name: str
+    centroids: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    geoms: np.ndarray
+    segments: np.ndarray
+
+
+def _quat_mat(q: np.ndarray) -> np.ndarray:
+    m = np.zeros(9)
+    mujoco.mju_quat2Mat(m, np.asarray(q, dtype=np.float64))
+    return m.reshape(3, 3)
+
+
+def body_elements(
+    model: mujoco.MjModel, scene: Scene
+) -> tuple[tuple[BodyElements, ...], dict[int, ElementSet]]:
+    """Each tagged body's elements in its frame (bodies in id order), and each tagged geom's
+    ElementSet in its body frame (geom id -> set)."""
+    by_body: dict[int, list[tuple[Intruder, ElementSet]]] = {}
+    for intr in scene.intruders:
+        es = geom_elements(model, intr)
+        # Geom frame -> body frame (geom_pos/quat already absorb MuJoCo's mesh re-centring).
+        body_set = es.transformed(_quat_mat(model.geom_quat[intr.geom]), model.geom_pos[intr.geom])
+        by_body.setdefault(intr.body, []).append((intr, body_set))
+    geoms: dict[int, ElementSet] = {}
+    bodies = []
+    for body, items in sorted(by_body.items()):
+        for intr, es in items:
+            geoms[intr.geom] = es
+        sizes = [len(es) for _, es in items]
+        bodies.append(
+            BodyElements(
+                body=body,
+                name=items[0][0].body_name,
+                centroids=np.concatenate([es.centroids for _, es in items]),
+                normals=np.concatenate([es.normals for _, es in items]),
+                areas=np.concatenate([es.areas for _, es in items]),
+                geoms=np.array([intr.geom for intr, _ in items], dtype=np.int64),
+                segments=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+            )
+        )
+    return tuple(bodies), geoms
+
+
+def free_rigid(model: mujoco.MjModel, b: int, tagged: set[int]) -> bool:
+    """True if body b moves as one free rigid body the field sees all of (the low-speed
+    treatment's condition): a single free joint, no descendant with a joint, mass or tagged
+    geoms, and no equality constraint (connect, weld, joint) on it."""
+    if (
+        model.body_jntnum[b] != 1
+        or model.jnt_type[model.body_jntadr[b]] != mujoco.mjtJoint.mjJNT_FREE
+    ):
+        return False
+    for c in range(b + 1, model.nbody):
+        p = c
+        while p > b:
+            p = int(model.body_parentid[p])
+        if p == b and (model.body_jntnum[c] > 0 or c in tagged or model.body_mass[c] > 0.0):
+            return False
+    for e in range(model.neq):
+        kind = int(model.eq_type[e])
+        ids = (int(model.eq_obj1id[e]), int(model.eq_obj2id[e]))
+        if kind == mujoco.mjtEq.mjEQ_JOINT and model.body_jntadr[b] in ids:
+            return False
+        if kind in (mujoco.mjtEq.mjEQ_CONNECT, mujoco.mjtEq.mjEQ_WELD):
+            if int(model.eq_objtype[e]) == mujoco.mjtObj.mjOBJ_SITE:
+                ids = tuple(int(model.site_bodyid[i]) if i >= 0 else -1 for i in ids)
+            if b in ids:
+                return False
+    return True
+
+
+def _live_view(address: int, dtype: type, n: int) -> np.ndarray:
+    """A NumPy view of n values at a checked address inside the MjModel (layout)."""
+    ctype = np.ctypeslib.as_ctypes_type(dtype)
+    return np.ctypeslib.as_array((ctype * n).from_address(address))
+
+
+@dataclass(eq=False)
+class StaticTables:
+    """A field's FieldModel arrays and the record the compiled pass reads (kept alive together;
+    the MjModel is referenced too, since its fields are read live)."""
+
+    model: mujoco.MjModel
+    arrays: FieldModel
+    record: np.ndarray
+
+    @property
+    def address(self) -> int:
+        """Address of the record (``passive.step``'s first argument)."""
+        return self.record.ctypes.data
+
+
+def build_tables(
+    model: mujoco.MjModel,
+    scene: Scene,
+    bodies: tuple[BodyElements, ...],
+    treat: np.ndarray,
+    material_key: int,
+) -> StaticTables:
+    """The field's static tables; treat (ntbody,) bool: bodies the treatment may act on;
+    material_key: 0 for the compiled kernel, else the Python material's key."""
+    geoms, tbody, adr, num, rbound = [], [], [], [], []
+    geomadr, geomnum, offset = [], [], 0
+    for k, be in enumerate(bodies):
+        geomadr.append(len(geoms))
+        geomnum.append(len(be.geoms))
+        for gi, g in enumerate(be.geoms):
+            geoms.append(int(g))
+            tbody.append(k)
+            adr.append(offset + int(be.segments[gi]))
+            num.append(int(be.segments[gi + 1] - be.segments[gi]))
+            rbound.append(float(model.geom_rbound[g]))
+        offset += len(be.areas)
+    i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    addr = layout.model_addresses(model)
+    material = scene.material
+    region = scene.region
+    arrays = FieldModel(
+        nbody=model.nbody,
+        ngeom=model.ngeom,
+        elem_pos=f64(np.concatenate([be.centroids for be in bodies])),
+        elem_normal=f64(np.concatenate([be.normals for be in bodies])),
+        elem_area=f64(np.concatenate([be.areas for be in bodies])),
+        tgeom_geomid=i64(geoms),
+        tgeom_tbody=i64(tbody),
+        tgeom_elemadr=i64(adr),
+        tgeom_elemnum=i64(num),
+        tgeom_rbound=f64(rbound),
+        tbody_bodyid=i64([be.body for be in bodies]),
+        tbody_rootid=i64([model.body_rootid[be.body] for be in bodies]),
+        tbody_geomadr=i64(geomadr),
+        tbody_geomnum=i64(geomnum),
+        tbody_treat=i64(treat),
+        surface_z=float(scene.surface_z),
+        use_region=int(region is not None),
+        region=f64(np.zeros((2, 3)) if region is None else region),
+        zeta=float(material.zeta),
+        alpha_y=float(material.alpha_y0),
+        coef=f64(material.kernel_coefficients if material_key == 0 else np.zeros(18)),
+        material_key=int(material_key),
+        treat=int(scene.low_speed.on),
+        reach=float(scene.low_speed.reach),
+        jacobian_step=lowspeed.JACOBIAN_STEP,
+        rk4_hold_steps=lowspeed.RK4_HOLD_STEPS,
+        dsbl_gravity=int(mujoco.mjtDisableBit.mjDSBL_GRAVITY),
+        int_rk4=int(mujoco.mjtIntegrator.mjINT_RK4),
+        opt_timestep=_live_view(addr["opt_timestep"], np.float64, 1),
+        opt_gravity=model.opt.gravity,
+        opt_disableflags=_live_view(addr["opt_disableflags"], np.int32, 1),
+        opt_integrator=_live_view(addr["opt_integrator"], np.int32, 1),
+        body_mass=model.body_mass,
+        body_inertia=model.body_inertia,
+        body_gravcomp=model.body_gravcomp,
+    )
+    sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies)}
+    return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))

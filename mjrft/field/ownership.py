@@ -1,0 +1,71 @@
+"""Who owns ``xfrc_applied``: the user's part of each intruding body's row survives the field.
+
+``xfrc_applied`` is user input that persists across steps (a controller, the interactive
+viewer's perturbation). The installed field writes the intruding bodies' rows every forward pass,
+so per MjData it remembers the user's part of each such row and what it wrote there
+(``FieldData.user``, ``FieldData.written``). A row that no longer holds what the field wrote was
+assigned by the user, and that value becomes the user's part; otherwise the user's part is
+unchanged. Then row = user + RFT. So user forces are never lost or counted twice, for any number
+of forward passes per step, and leaving ``installed()`` restores the user's values.
+
+A copy of a tracked MjData (``copy.copy``, ``mj_copyData``) carries rows the field wrote. To
+recognise it, each pass also records (written, user) in the MjData's ring of its last
+``XFRC_HISTORY`` writes; an MjData seen for the first time takes the user part of a matching
+write of any MjData of the field (:func:`adopt`), or else its whole rows as the user's.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: How many past writes of xfrc_applied rows each MjData remembers, to recognise its copies.
+XFRC_HISTORY = 4096
+
+
+@numba.njit(cache=True)
+def take_user_part(m, d, s):
+    """Rows of tagged bodies that differ from what was written were assigned by the user: they
+    become the user part (s.user)."""
+    for k in range(m.tbody_bodyid.shape[0]):
+        b = m.tbody_bodyid[k]
+        assigned = False
+        for c in range(6):
+            if d.xfrc_applied[b, c] != s.written[b, c]:
+                assigned = True
+        if assigned:
+            for c in range(6):
+                s.user[b, c] = d.xfrc_applied[b, c]
+
+
+@numba.njit(cache=True)
+def write_rows(m, d, s):
+    """xfrc_applied = user + RFT on every tagged row (kept rows keep what stage 1 wrote), and
+    remember what was written (s.written and the ring)."""
+    ring_size = s.ring.shape[0] - 1
+    slot = int(s.ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
+    for k in range(m.tbody_bodyid.shape[0]):
+        b = m.tbody_bodyid[k]
+        for c in range(6):
+            total = d.xfrc_applied[b, c] if s.keep[k] else s.user[b, c] + s.wrench[b, c]
+            d.xfrc_applied[b, c] = total
+            s.written[b, c] = total
+            s.ring[1 + slot, 0, k, c] = total
+            s.ring[1 + slot, 1, k, c] = s.user[b, c]
+    s.ring[0, 0, 0, 0] += 1.0
+
+
+def adopt(current: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
+    """User part (ntbody, 6) of the tagged rows ``current`` of an MjData seen for the first time.
+
+    A copy of a tracked MjData carries rows the field wrote (user + RFT); rings hold the last
+    writes of the field's MjData and the user part behind each. Rows matching none are all the
+    user's.
+    """
+    for ring in rings:
+        n = min(int(ring[0, 0, 0, 0]), ring.shape[0] - 1)
+        if n:
+            hits = np.flatnonzero(np.all(ring[1 : n + 1, 0] == current, axis=(1, 2)))
+            if hits.size:
+                return ring[1 + hits[-1], 1].copy()
+    return current.copy()
