@@ -6,9 +6,9 @@ field to t = T (default 10 s: deep in the medium). Medians over repeats, all in 
 
   plain      a plain mj_step of the model (field off), called from Python
   field      an mj_step with the installed field, called from Python
-  native     mjrft._native.step alone (the field's whole pass), in a numba loop
-  wrench     mjrft._kernel.body_wrench over the ellipsoid alone, in a numba loop
-  acting     mjrft._kernel.forces over the acting triangles only, from precomputed world-frame
+  native     mjrft.field.passive.step alone (the field's whole pass), in a numba loop
+  wrench     mjrft.core.kernel.body_wrench over the ellipsoid alone, in a numba loop
+  acting     mjrft.core.kernel.forces over the acting triangles only, from precomputed world-frame
              positions, normals and velocities: the evaluation every pipeline pays at this
              precision, whatever its bookkeeping (a lower bound on the field's cost)
   wrench_2t  body_wrench with the ellipsoid's chunks dealt to two OpenMP threads (numba
@@ -32,8 +32,7 @@ from field_overhead import MODELS, OUT, state_at, time_pairs
 
 from mjrft import simulate
 from mjrft.core import kernel as _kernel
-from mjrft.field import GranularField
-from mjrft.field import native as _native
+from mjrft.field import GranularField, passive
 
 REPEATS = 9
 CALLS = 2000
@@ -43,10 +42,10 @@ SUM_ROUNDOFF = 1e-12
 
 
 @numba.njit(error_model="numpy")
-def _loop_native(reps, field_addr, data_addr):
+def _loop_native(reps, field_addr, data_addr, mode):
     s = 0
     for _ in range(reps):
-        s += _native.step(field_addr, data_addr)
+        s += passive.step(field_addr, data_addr, mode)
     return s
 
 
@@ -119,17 +118,17 @@ def main() -> None:
     d = mujoco.MjData(model)
     d.qpos[:], d.qvel[:], d.act[:], d.ctrl[:], d.time = d0.qpos, d0.qvel, d0.act, d0.ctrl, d0.time
     mujoco.mj_forward(model, d)
-    if len(fld._n_gint) != 1:
-        raise SystemExit(f"expected one intruding geom in the rig, found {len(fld._n_gint)}")
-    _, b, start, stop, root = (int(x) for x in fld._n_gint[0])
-    par = fld._n_par
+    fm = fld._tables.arrays  # the field's static tables (mjrft.field.tables.FieldModel)
+    if len(fm.tgeom_geomid) != 1:
+        raise SystemExit(f"expected one intruding geom in the rig, found {len(fm.tgeom_geomid)}")
+    b, root = int(fm.tbody_bodyid[0]), int(fm.tbody_rootid[0])
+    start, stop = int(fm.tgeom_elemadr[0]), int(fm.tgeom_elemadr[0] + fm.tgeom_elemnum[0])
     wargs = (
-        fld._n_cent, fld._n_norm, fld._n_area, start, stop, d.xmat[b].reshape(3, 3).copy(),
+        fm.elem_pos, fm.elem_normal, fm.elem_area, start, stop, d.xmat[b].reshape(3, 3).copy(),
         d.xpos[b].copy(), d.cvel[b, :3].copy(), d.cvel[b, 3:].copy(), d.subtree_com[root].copy(),
-        d.xipos[b].copy(), fld._n_coef, par[_native.P_AY], par[_native.P_ZETA],
-        par[_native.P_SURFACE], False, np.zeros((2, 3)),
+        d.xipos[b].copy(), fm.coef, fm.alpha_y, fm.zeta, fm.surface_z, False, np.zeros((2, 3)),
     )  # fmt: skip
-    n_el = len(fld._n_area)
+    n_el = len(fm.elem_area)
     w1, e1 = np.zeros(6), np.zeros((n_el, 3))
     acting = _kernel.body_wrench(*wargs, w1, e1)
     w2, e2 = np.zeros(6), np.zeros((n_el, 3))
@@ -145,24 +144,21 @@ def main() -> None:
     pos, nrm = np.ascontiguousarray(st.pos[act]), np.ascontiguousarray(st.normal[act])
     area, vel = np.ascontiguousarray(st.area[act]), np.ascontiguousarray(st.vel[act])
     out = np.zeros((len(area), 3))
-    surface = par[_native.P_SURFACE]
-    _kernel.forces(pos, nrm, area, vel, fld._n_coef, par[_native.P_AY], par[_native.P_ZETA],
-                   surface, out)  # fmt: skip
+    _kernel.forces(pos, nrm, area, vel, fm.coef, fm.alpha_y, fm.zeta, fm.surface_z, out)
     if not np.allclose(out, st.force[act], rtol=1e-12, atol=0.0):
         raise SystemExit("the acting-only evaluation disagrees with the field's element forces")
 
     rows = {"plain": plain_us, "field": field_us}
     with fld.installed():
-        mujoco.mj_step(model, d)  # registers d: its native address table exists from here
-        entry = fld._data[d._address].entry
+        mujoco.mj_step(model, d)  # registers d: its state (entry record) exists from here
         rows["native"] = _median_us(
-            _loop_native, np.uint64(fld._table.ctypes.data), np.uint64(entry.ctypes.data)
-        )
+            _loop_native, np.uint64(fld._tables.address), np.uint64(fld._state(d).address),
+            passive.INSTALLED,
+        )  # fmt: skip
     rows["wrench"] = _median_us(_loop_wrench, wargs, np.zeros(6), e1)
     rows["acting"] = _median_us(
-        _loop_forces, pos, nrm, area, vel, fld._n_coef, par[_native.P_AY],
-        par[_native.P_ZETA], surface, out,
-    )  # fmt: skip
+        _loop_forces, pos, nrm, area, vel, fm.coef, fm.alpha_y, fm.zeta, fm.surface_z, out
+    )
     rows["wrench_2t"] = _median_us(_loop_two, wargs, np.zeros(6), e2)
 
     print(

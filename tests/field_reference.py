@@ -277,8 +277,8 @@ def stick_fraction(
     over the step, so a body rising slowly against gravity (|v| < g dt) gains more potential
     energy than the kinetic energy the stick takes (the RK4 flags of the slow lowering). The
     wrench lam S ends at (1 - lam) xi_free and its :func:`step_work` is the quadratic
-    ``(n2/dt) lam^2 + B lam + C`` with C <= 0, so the largest root is the answer when lam = 1 would gain; with RK4 it is
-    ``1 - dt (S . xi) / n2``.
+    ``(n2/dt) lam^2 + B lam + C`` with C <= 0, so the largest root is the answer when lam = 1
+    would gain; with RK4 it is ``1 - dt (S . xi) / n2``.
     Under Euler a passive body's stick never gains (its position does not move). Arguments:
     stick (6,) = -M xi_free / dt, twist (6,), other (6,), world frame as in :func:`treat`;
     n2 = |xi_free|^2_M [kg m^2/s^2] (twice a kinetic energy); mass [kg]; dt [s].

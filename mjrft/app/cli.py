@@ -243,9 +243,12 @@ def _positive_float(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from mjrft import __version__
+
     p = argparse.ArgumentParser(
         prog="mjrft", description="Granular Resistive Force Theory (3D RFT) for MuJoCo."
     )
+    p.add_argument("--version", action="version", version=f"mjrft {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     d = sub.add_parser(
         "demo",

@@ -67,18 +67,31 @@ class BatchedField:
         # RFT threads: at least _MIN_COPIES_PER_THREAD copies each (a hand-off costs ~20 us).
         n_rft = max(1, min(nthread or os.cpu_count() or 1, nsim // _MIN_COPIES_PER_THREAD))
         bounds = np.linspace(0, nsim, n_rft + 1).round().astype(int)
-        # Each RFT thread has its own state (work arrays, counters in the field's stats).
+        # Each RFT thread has its own state (work arrays, counters in the field's stats); each
+        # copy an entry record pointing at its rows of the batch's arrays.
         self._states = [field._counted_state() for _ in range(n_rft)]
-        arr, self._jobs = self._arrays, []
-        for st, (lo, hi) in zip(self._states, itertools.pairwise(bounds.tolist()), strict=True):
-            sl = slice(lo, hi)
-            self._jobs.append(
-                (field._tables.address, st.address, arr["xpos"][sl], arr["xmat"][sl],
-                 arr["xipos"][sl], arr["ximat"][sl], arr["cvel"][sl], arr["subtree_com"][sl],
-                 arr["geom_xpos"][sl], self._user[sl], self._wrench[sl])
-            )  # fmt: skip
+        self._entries = [
+            self._copy_entries(st, range(lo, hi))
+            for st, (lo, hi) in zip(self._states, itertools.pairwise(bounds.tolist()), strict=True)
+        ]
+        self._jobs = [
+            (field._tables.address, np.uint64(e.ctypes.data), len(e), passive.BATCH)
+            for e in self._entries
+        ]
         self._starts = bounds[:-1].tolist()
         self._pool = ThreadPoolExecutor(n_rft - 1) if n_rft > 1 else None
+
+    def _copy_entries(self, st, sims: range) -> np.ndarray:
+        """Entry records of copies sims: their rows of the bound arrays, their user wrenches
+        and output rows, and the thread state st's work arrays."""
+        out = np.repeat(st.entry, len(sims))
+        rows = {**self._arrays, "user_in": self._user, "wrench": self._wrench}
+        for i, sim in enumerate(sims):
+            for name, arr in rows.items():
+                if not arr[sim].flags.c_contiguous:  # the entry describes each copy's rows
+                    raise RuntimeError(f"mujoco.batch's {name} rows are not contiguous")
+                out[name][i] = arr[sim].ctypes.data
+        return out
 
     @property
     def user_xfrc(self) -> np.ndarray:

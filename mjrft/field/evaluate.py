@@ -1,9 +1,10 @@
 """The RFT model on tagged bodies, compiled: state check, culling, and wrenches at a twist.
 
-Arguments are grouped as MuJoCo Warp groups them: ``m`` the field's static tables
-(``tables.FieldModel``), ``d`` the MjData's arrays (``tables.MjDataArrays``), ``s`` the field's
-state for that MjData (``tables.FieldData``). World frame throughout; wrenches are force [N]
-then torque [N m] about the body's CoM (``xipos``).
+Every function takes ``m_rec, e_rec``: the addresses of the field's model record and of one
+MjData's entry record (``mjrft.field.tables``), and unpacks them into the three groups MuJoCo
+Warp would pass: ``m`` the field's static tables (``FieldModel``), ``d`` the MjData's arrays
+(``MjDataArrays``), ``s`` the field's state for that MjData (``FieldData``). World frame
+throughout; wrenches are force [N] then torque [N m] about the body's CoM (``xipos``).
 
 A geom is evaluated by the compiled kernel (``mjrft.core.kernel.body_wrench``) for Fourier-form
 media, or, for media given by Python callables, by their NumPy evaluation
@@ -17,13 +18,15 @@ import numpy as np
 
 from mjrft.core import kernel
 from mjrft.field import python_material
+from mjrft.field.tables import unpack
 
 _JIT = {"cache": True, "error_model": "numpy"}
 
 
 @numba.njit(**_JIT)
-def first_bad_body(m, d):
+def first_bad_body(m_rec, e_rec):
     """Index k of the first tagged body with a non-finite position or velocity, or -1."""
+    m, d, _ = unpack(m_rec, e_rec)
     for k in range(m.tbody_bodyid.shape[0]):
         b = m.tbody_bodyid[k]
         for c in range(3):
@@ -54,10 +57,11 @@ def culled(m, d, g):
 
 
 @numba.njit(**_JIT)
-def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
+def geom_wrench(m_rec, e_rec, g, omega, v_ref, p_ref, com, wrench, elem_force):
     """Add to wrench (6,) the RFT wrench on tagged geom g at its body's pose, moving with angular
     velocity omega (3,) [rad/s] and linear velocity v_ref (3,) [m/s] at the world point p_ref
     (3,); torque about com (3,). Writes the geom's rows of elem_force. Returns #acting."""
+    m, d, _ = unpack(m_rec, e_rec)
     b = m.tbody_bodyid[m.tgeom_tbody[g]]
     start = m.tgeom_elemadr[g]
     stop = start + m.tgeom_elemnum[g]
@@ -79,10 +83,11 @@ def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
 
 
 @numba.njit(**_JIT)
-def twist_wrench(m, d, s, k, v, omega, out):
+def twist_wrench(m_rec, e_rec, k, v, omega, out):
     """Set out (6,) to the RFT wrench on tagged body k's geoms in play (not culled this pass),
     the body moving with the twist (v at the CoM [m/s], omega [rad/s]; world frame). Element
     forces go to s.scratch (elem_force keeps the pure model). Returns (#evaluated, #acting)."""
+    m, d, s = unpack(m_rec, e_rec)
     out[:] = 0.0
     b = m.tbody_bodyid[k]
     evaluated = 0
@@ -90,14 +95,15 @@ def twist_wrench(m, d, s, k, v, omega, out):
     for g in range(m.tbody_geomadr[k], m.tbody_geomadr[k] + m.tbody_geomnum[k]):
         if s.cull[g]:
             continue
-        acting += geom_wrench(m, d, g, omega, v, d.xipos[b], d.xipos[b], out, s.scratch)
+        acting += geom_wrench(m_rec, e_rec, g, omega, v, d.xipos[b], d.xipos[b], out, s.scratch)
         evaluated += m.tgeom_elemnum[g]
     return evaluated, acting
 
 
 @numba.njit(**_JIT)
-def in_play(m, s, k):
+def in_play(m_rec, e_rec, k):
     """True if a geom of tagged body k may touch the medium this pass."""
+    m, _, s = unpack(m_rec, e_rec)
     for g in range(m.tbody_geomadr[k], m.tbody_geomadr[k] + m.tbody_geomnum[k]):
         if not s.cull[g]:
             return True
@@ -105,10 +111,11 @@ def in_play(m, s, k):
 
 
 @numba.njit(**_JIT)
-def pure_wrenches(m, d, s):
+def pure_wrenches(m_rec, e_rec):
     """The pure model on every tagged body that neither keeps nor freezes its wrench this pass:
     culls geoms (s.cull), zeroes element forces of geoms that left the medium, and writes
     s.wrench rows and s.elem_force. Returns (#evaluated, #acting)."""
+    m, d, s = unpack(m_rec, e_rec)
     for k in range(m.tbody_bodyid.shape[0]):
         if not s.keep[k]:
             s.wrench[m.tbody_bodyid[k]] = 0.0
@@ -119,7 +126,7 @@ def pure_wrenches(m, d, s):
         if s.keep[k]:
             continue
         b = m.tbody_bodyid[k]
-        if culled(m, d, g):
+        if culled(m, d, g):  # inlined
             s.cull[g] = 1
             if s.geom_dirty[g]:
                 start = m.tgeom_elemadr[g]
@@ -130,7 +137,7 @@ def pure_wrenches(m, d, s):
         if s.frz[k]:
             continue
         acting += geom_wrench(
-            m, d, g, d.cvel[b, :3], d.cvel[b, 3:], d.subtree_com[m.tbody_rootid[k]],
+            m_rec, e_rec, g, d.cvel[b, :3], d.cvel[b, 3:], d.subtree_com[m.tbody_rootid[k]],
             d.xipos[b], s.wrench[b], s.elem_force,
         )  # fmt: skip
         evaluated += m.tgeom_elemnum[g]

@@ -77,7 +77,9 @@ def _build_guard(trampoline_address: int):
     registry_address = np.uint64(_registry.ctypes.data)
     datas_address = np.uint64(_datas.ctypes.data)
     step = passive.step
-    installed, ok = passive.INSTALLED, passive.OK
+    # The mode as a run-time value (a literal would make numba compile the pass once more).
+    modes = np.array([passive.INSTALLED], dtype=np.int64)
+    ok = passive.OK
 
     @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
     def guard(m, d):
@@ -97,7 +99,7 @@ def _build_guard(trampoline_address: int):
             dkey = _address(d)
             for j in range(dat[0]):
                 if dat[1 + 3 * j] == dkey and dat[2 + 3 * j] == key:
-                    if step(table, dat[3 + 3 * j], installed) == ok:
+                    if step(table, dat[3 + 3 * j], modes[0]) == ok:
                         return
                     break
         trampoline(m, d)

@@ -46,14 +46,14 @@ tried and rejected: a torque that translation causes was then applied to a stuck
 it up). ``reach`` scales the predicted velocity change and is the only knob (1: the exact
 time-stepping boundary; larger values hand more of the slow motion to steps 2 (implicit) and 3;
 default 4). The treatment needs the body's own inertia and every force on it, so it applies to
-free rigid bodies (a free joint, no jointed or massive descendants); bodies in mechanisms feel the pure model,
-since their actuator and constraint forces are not known when the field runs (MuJoCo computes
-them after the passive forces).
+free rigid bodies (a free joint, no jointed or massive descendants); bodies in mechanisms feel the
+pure model, since their actuator and constraint forces are not known when the field runs (MuJoCo
+computes them after the passive forces).
 
 Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and
 wrenches (force [N], torque about the CoM [N m]), both in world coordinates. Compiled; the
 arguments ``m``, ``d``, ``s`` are the field's tables, the MjData's arrays and the field's state
-for that MjData (``mjrft.field.tables``). ``tests/lowspeed_reference.py`` states the same rules
+for that MjData, unpacked from the record addresses ``m_rec, e_rec`` (``mjrft.field.tables``). ``tests/field_reference.py`` states the same rules
 plainly in NumPy, and the tests check this code against it.
 """
 
@@ -65,6 +65,7 @@ import numba
 import numpy as np
 
 from mjrft.field.evaluate import in_play, twist_wrench
+from mjrft.field.tables import unpack
 
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
@@ -248,7 +249,7 @@ def transverse_basis(twist, mass, iw, mm, n):
 
 
 @numba.njit(**_JIT)
-def implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
+def implicit_wrench(m_rec, e_rec, k, twist, other, mass, iw, ii, dt, semi, w):
     """One Newton step of backward Euler across the motion: replaces w (6,) (the pure wrench at
     twist) and returns True, or leaves it and returns False.
 
@@ -261,6 +262,7 @@ def implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
     is not finite, reverses the motion within the step, or gains energy over it. twist, other
     (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse.
     """
+    m, _, _ = unpack(m_rec, e_rec)
     mm = np.zeros((6, 6))
     for c in range(3):
         mm[c, c] = mass
@@ -275,7 +277,7 @@ def implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
     for q in range(1, 6):
         for c in range(6):
             probe[c] = twist[c] + h * basis[q, c]
-        twist_wrench(m, d, s, k, probe[:3], probe[3:], pw)
+        twist_wrench(m_rec, e_rec, k, probe[:3], probe[3:], pw)
         mu = mm @ basis[q]
         for r in range(6):
             dw = (pw[r] - w[r]) / h
@@ -328,7 +330,7 @@ def world_inertia(x, inertia):
     return iw, ii
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def com_velocity(m, d, k):
     """(3,) world velocity [m/s] of tagged body k's CoM: cvel's linear part is at the subtree
     CoM of the body's root (DESIGN.md section 3)."""
@@ -343,7 +345,7 @@ def com_velocity(m, d, k):
     return v
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def gravity(m, b):
     """(3,) gravity acceleration [m/s^2] on body b, world frame (flag and compensation live)."""
     g = np.zeros(3)
@@ -356,7 +358,7 @@ def gravity(m, b):
 
 
 @numba.njit(**_JIT)
-def treat_body(m, d, s, k, user, dt, semi, w, ab, tw):
+def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     """The low-speed treatment of tagged body k (a free rigid body); returns its decision.
 
     w (6,): the body's pure RFT wrench, replaced by the treated one. user (6,): the other
@@ -365,6 +367,7 @@ def treat_body(m, d, s, k, user, dt, semi, w, ab, tw):
     to the body's twist (v at the CoM, omega). semi: positions advance with the step's end
     velocity (every integrator but RK4; :func:`step_work`). World frame, torques about the CoM.
     """
+    m, d, _ = unpack(m_rec, e_rec)
     b = m.tbody_bodyid[k]
     mass = m.body_mass[b]
     inertia = m.body_inertia[b]
@@ -409,22 +412,22 @@ def treat_body(m, d, s, k, user, dt, semi, w, ab, tw):
         wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
         if (reach * dt) ** 2 * wn2 < sq or not m.jacobian_step > 0.0:
             return PURE
-        if implicit_wrench(m, d, s, k, twist, other, mass, iw, ii, dt, semi, w):
+        if implicit_wrench(m_rec, e_rec, k, twist, other, mass, iw, ii, dt, semi, w):
             return IMPLICIT
         # Implicitly the motion would reverse within the step (or gain work): decide below.
-    return stick_or_slip(m, d, s, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w,
-                         sq + dxi > 0.0)  # fmt: skip
+    return stick_or_slip(m_rec, e_rec, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi,
+                         w, sq + dxi > 0.0)  # fmt: skip
 
 
 @numba.njit(**_JIT)
-def stick_or_slip(m, d, s, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w, keeps):
+def stick_or_slip(m_rec, e_rec, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w, keeps):
     """Step 3 of the treatment (module docstring): slip on R = W(xi_free) if it cannot stop the
     free motion within the step and adds no energy; else the pure model w if the motion keeps
     its sense within this step (``keeps``); else stick. Returns the decision; sets w (6,)."""
     n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
     if n2 > 0.0:
         rw = np.zeros(6)
-        twist_wrench(m, d, s, k, v_free, om_free, rw)
+        twist_wrench(m_rec, e_rec, k, v_free, om_free, rw)
         diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
         diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
         if dt * diss < n2:
@@ -450,7 +453,7 @@ def stick_or_slip(m, d, s, k, twist, other, v_free, om_free, mass, iw, ii, dt, s
 
 
 @numba.njit(**_JIT)
-def treat_all(m, d, s, user):
+def treat_all(m_rec, e_rec, user):
     """The low-speed treatment of every treatable tagged body with a geom in play.
 
     s.wrench rows hold the pure RFT wrenches and are replaced where treated; user (nbody, 6):
@@ -458,6 +461,7 @@ def treat_all(m, d, s, user):
     pure model in its later stages: treated, or reversing within rk4_hold_steps) and s.frozen
     (stage 1's twist and implicit correction of bodies moved by the implicit step).
     """
+    m, _, s = unpack(m_rec, e_rec)
     dt = m.opt_timestep[0]
     semi = m.opt_integrator[0] != m.int_rk4
     for k in range(m.tbody_bodyid.shape[0]):
@@ -465,11 +469,13 @@ def treat_all(m, d, s, user):
         s.slow[k] = False
         if not m.tbody_treat[k] or not dt > 0.0:
             continue
-        if not in_play(m, s, k):  # nothing of the body can touch the medium: nothing to treat
+        if not in_play(
+            m_rec, e_rec, k
+        ):  # nothing of the body can touch the medium: nothing to treat
             continue
         ab = np.zeros(2)
         pure = s.wrench[b].copy()
-        dec = treat_body(m, d, s, k, user[b], dt, semi, s.wrench[b], ab, s.frozen[k, :6])
+        dec = treat_body(m_rec, e_rec, k, user[b], dt, semi, s.wrench[b], ab, s.frozen[k, :6])
         for c in range(6):  # only a body moved by the implicit step keeps a record
             s.frozen[k, 6 + c] = s.wrench[b, c] - pure[c] if dec == IMPLICIT else 0.0
             if dec != IMPLICIT:

@@ -118,9 +118,10 @@ class StaticTables:
     record: np.ndarray
 
     @property
-    def address(self) -> int:
-        """Address of the record (``passive.step``'s first argument)."""
-        return self.record.ctypes.data
+    def address(self) -> np.uint64:
+        """Address of the record (``passive.step``'s first argument; uint64, as the callback
+        guard passes it, so that numba compiles the pass for one signature)."""
+        return np.uint64(self.record.ctypes.data)
 
 
 def build_tables(

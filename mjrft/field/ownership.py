@@ -19,14 +19,17 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mjrft.field.tables import unpack
+
 #: How many past writes of xfrc_applied rows each MjData remembers, to recognise its copies.
 XFRC_HISTORY = 4096
 
 
 @numba.njit(cache=True)
-def take_user_part(m, d, s):
+def take_user_part(m_rec, e_rec):
     """Rows of tagged bodies that differ from what was written were assigned by the user: they
     become the user part (s.user)."""
+    m, d, s = unpack(m_rec, e_rec)
     for k in range(m.tbody_bodyid.shape[0]):
         b = m.tbody_bodyid[k]
         assigned = False
@@ -39,9 +42,10 @@ def take_user_part(m, d, s):
 
 
 @numba.njit(cache=True)
-def write_rows(m, d, s):
+def write_rows(m_rec, e_rec):
     """xfrc_applied = user + RFT on every tagged row (kept rows keep what stage 1 wrote), and
     remember what was written (s.written and the ring)."""
+    m, d, s = unpack(m_rec, e_rec)
     ring_size = s.ring.shape[0] - 1
     slot = int(s.ring[0, 0, 0, 0]) % ring_size  # ring[0] holds the write counter
     for k in range(m.tbody_bodyid.shape[0]):

@@ -19,7 +19,7 @@ import numpy as np
 
 from mjrft.field import lowspeed, ownership, rk4
 from mjrft.field.evaluate import first_bad_body, pure_wrenches, twist_wrench
-from mjrft.field.tables import MjDataArrays, unpack_entry, unpack_model
+from mjrft.field.tables import ENTRY_SIZE, unpack
 
 INSTALLED, EXPLICIT, BATCH, QUERY = 0, 1, 2, 3
 #: Status of a pass: OK, or -1 - k where tagged body k has a non-finite position or velocity.
@@ -28,10 +28,11 @@ _JIT = {"cache": True, "error_model": "numpy"}
 
 
 @numba.njit(**_JIT)
-def frozen_wrenches(m, d, s):
+def frozen_wrenches(m_rec, e_rec):
     """Bodies moved by the implicit step feel, in RK4's later stages, the model at the stage's
     pose with stage 1's twist plus stage 1's correction (rk4.RK4_FROZEN). Returns (#evaluated,
     #acting)."""
+    m, _, s = unpack(m_rec, e_rec)
     evaluated = 0
     acting = 0
     for k in range(m.tbody_bodyid.shape[0]):
@@ -39,8 +40,8 @@ def frozen_wrenches(m, d, s):
             continue
         b = m.tbody_bodyid[k]
         blk = rk4.RK4_HEAD + rk4.RK4_BODY * k
-        ne, na = twist_wrench(m, d, s, k, s.rk4[blk + 1 : blk + 4], s.rk4[blk + 4 : blk + 7],
-                              s.wrench[b])  # fmt: skip
+        v, omega = s.rk4[blk + 1 : blk + 4], s.rk4[blk + 4 : blk + 7]
+        ne, na = twist_wrench(m_rec, e_rec, k, v, omega, s.wrench[b])
         if ne > 0:  # in play: the correction acts where the model does
             for c in range(6):
                 s.wrench[b, c] += s.rk4[blk + 7 + c]
@@ -50,14 +51,16 @@ def frozen_wrenches(m, d, s):
 
 
 @numba.njit(**_JIT)
-def forward(m, d, s, user, mode):
+def forward(m_rec, e_rec, mode):
     """One pass of the field on one MjData; returns OK or -1 - (bad tagged body).
 
-    user (nbody, 6): the other applied wrenches the treatment balances (s.user once the
-    installed path has taken the user part). Writes s.wrench, s.elem_force, s.decision and, when
+    m_rec, e_rec: addresses of the field's model record and the MjData's entry record
+    (``mjrft.field.tables``). The treatment balances the user part of xfrc_applied (INSTALLED)
+    or s.user_in (the other modes). Writes s.wrench, s.elem_force, s.decision and, when
     installed, xfrc_applied and the RK4 record.
     """
-    bad = first_bad_body(m, d)
+    m, d, s = unpack(m_rec, e_rec)
+    bad = first_bad_body(m_rec, e_rec)
     s.status[0] = OK if bad < 0 else -1 - bad
     if bad >= 0:  # refuse to feed a non-finite state forward (Python names the body)
         return s.status[0]
@@ -70,9 +73,9 @@ def forward(m, d, s, user, mode):
         held = rk4.stage_held(d.time[0], m.opt_timestep[0], s.rk4)
         if held:
             rk4.read_modes(s.rk4, s.keep, s.frz)
-    evaluated, acting = pure_wrenches(m, d, s)
+    evaluated, acting = pure_wrenches(m_rec, e_rec)
     if held:
-        ne, na = frozen_wrenches(m, d, s)
+        ne, na = frozen_wrenches(m_rec, e_rec)
         evaluated += ne
         acting += na
     if mode != QUERY:
@@ -81,72 +84,54 @@ def forward(m, d, s, user, mode):
         s.stats[1] += evaluated
         s.stats[2] += acting
     if mode == INSTALLED:
-        ownership.take_user_part(m, d, s)
+        ownership.take_user_part(m_rec, e_rec)
     if not held and mode != QUERY:  # a held stage keeps its step's decisions
         s.decision[:] = lowspeed.PURE
         s.frozen[:] = 0.0
         if m.treat:
-            lowspeed.treat_all(m, d, s, user)
+            lowspeed.treat_all(m_rec, e_rec, s.user if mode == INSTALLED else s.user_in)
         if mode == INSTALLED:
             rk4.write_modes(s.rk4, s.decision, s.slow, s.frozen, lowspeed.IMPLICIT)
     if mode == INSTALLED:
-        ownership.write_rows(m, d, s)
+        ownership.write_rows(m_rec, e_rec)
     if mode == INSTALLED or mode == EXPLICIT:
-        report(m, s, mode == INSTALLED)
+        report(s.decision, s.wrench, m.tbody_bodyid, s.report_decision, s.report_wrench,
+               mode == INSTALLED)  # fmt: skip
     return OK
 
 
 @numba.njit(**_JIT)
-def report(m, s, wrench):
+def report(decision, wrench, bodyid, report_decision, report_wrench, with_wrench):
     """Copy this pass's decisions (and wrenches) to the field's shared report arrays."""
-    for k in range(m.tbody_bodyid.shape[0]):
-        s.report_decision[k] = s.decision[k]
-        if wrench:
-            b = m.tbody_bodyid[k]
+    for k in range(bodyid.shape[0]):
+        report_decision[k] = decision[k]
+        if with_wrench:
             for c in range(6):
-                s.report_wrench[b, c] = s.wrench[b, c]
+                report_wrench[bodyid[k], c] = wrench[bodyid[k], c]
 
 
 @numba.njit(**_JIT)
-def step(model_address, entry_address, mode):
-    """One pass (``forward``) on the MjData whose entry record is at entry_address."""
-    m = unpack_model(model_address)
-    d, s = unpack_entry(m, entry_address)
-    user = s.user if mode == INSTALLED else s.user_in
-    return forward(m, d, s, user, mode)
+def step(m_rec, e_rec, mode):
+    """One pass (``forward``) on the MjData whose entry record is at e_rec."""
+    return forward(m_rec, e_rec, mode)
 
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)
-def batch(model_address, entry_address, xpos, xmat, xipos, ximat, cvel, subtree_com, geom_xpos,
-          user_xfrc, out):  # fmt: skip
-    """RFT wrenches of many simulations of one model: ``forward`` in BATCH mode on each copy.
+def batch(m_rec, entries, n, mode):
+    """``forward`` on n simulations of one model, one after the other (the GIL is released, so
+    threads may run disjoint sets of them).
 
-    xpos (S, nbody, 3), xmat (S, nbody, 9), xipos (S, nbody, 3), ximat (S, nbody, 9),
-    cvel (S, nbody, 6), subtree_com (S, nbody, 3), geom_xpos (S, ngeom, 3): bound MjData
-    fields, world frame. user_xfrc (S, nbody, 6): the user's applied wrenches. out (S, nbody,
-    6): each body's RFT force and torque at its CoM. entry_address: this thread's FieldData
-    (its work arrays and counters; the GIL is released, so threads run disjoint copies). Returns
-    OK, or -1 - s for the first simulation s whose state is not finite.
+    entries: address of n consecutive entry records, one per simulation (``ENTRY_RECORD``),
+    whose MjData arrays are that simulation's rows of the batch, ``user_in`` its user wrenches
+    and ``wrench`` its output rows; their other FieldData arrays are one thread's work arrays.
+    mode: BATCH (an argument rather than the constant, so that numba compiles ``forward`` once
+    for every caller instead of once per literal mode). Returns OK, or -1 - i for the first
+    simulation i whose state is not finite (then no wrench is written).
     """
-    m = unpack_model(model_address)
-    _, s = unpack_entry(m, entry_address)
-    time = np.zeros(1)  # unused in BATCH mode
-    out[:] = 0.0
-    for sim in range(xpos.shape[0]):
-        d = MjDataArrays(
-            xpos[sim], xmat[sim].reshape((-1, 3, 3)), xipos[sim], ximat[sim].reshape((-1, 3, 3)),
-            cvel[sim], subtree_com[sim], geom_xpos[sim], time, out[sim],
-        )  # fmt: skip
-        if first_bad_body(m, d) >= 0:
-            return -1 - sim
-    for sim in range(xpos.shape[0]):
-        d = MjDataArrays(
-            xpos[sim], xmat[sim].reshape((-1, 3, 3)), xipos[sim], ximat[sim].reshape((-1, 3, 3)),
-            cvel[sim], subtree_com[sim], geom_xpos[sim], time, out[sim],
-        )  # fmt: skip
-        forward(m, d, s, user_xfrc[sim], BATCH)
-        for k in range(m.tbody_bodyid.shape[0]):
-            b = m.tbody_bodyid[k]
-            for c in range(6):
-                out[sim, b, c] = s.wrench[b, c]
+    size = np.uint64(ENTRY_SIZE)
+    for i in range(n):
+        if first_bad_body(m_rec, entries + np.uint64(i) * size) >= 0:
+            return -1 - i
+    for i in range(n):
+        forward(m_rec, entries + np.uint64(i) * size, mode)
     return OK

@@ -84,9 +84,9 @@ class DataState:
             self.mjdata = None
 
     @property
-    def address(self) -> int:
-        """Address of the entry record (``passive.step``'s second argument)."""
-        return self.entry.ctypes.data
+    def address(self) -> np.uint64:
+        """Address of the entry record (``passive.step``'s second argument; uint64)."""
+        return np.uint64(self.entry.ctypes.data)
 
     def data(self) -> mujoco.MjData | None:
         """The MjData, if it is still alive."""

@@ -145,6 +145,7 @@ def _record(fields: tuple[str, ...], sizes: tuple[str, ...]) -> np.dtype:
 MODEL_RECORD = _record(FieldModel._fields, _MODEL_SIZES)
 #: Per-MjData entry: the MjData's arrays, then the field's state for it.
 ENTRY_RECORD = _record(MjDataArrays._fields + FieldData._fields, ("nring",))
+ENTRY_SIZE = ENTRY_RECORD.itemsize
 
 
 def pack(record: np.dtype, parts: tuple[NamedTuple, ...], sizes: dict[str, int]) -> np.ndarray:
@@ -241,3 +242,17 @@ def unpack_entry(m, address):
         _i(t.report_decision, nk),
     )  # fmt: skip
     return d, s
+
+
+@numba.njit(**_JIT)
+def unpack(m_rec, e_rec):
+    """(FieldModel, MjDataArrays, FieldData) from the addresses of the field's model record and
+    an MjData's entry record.
+
+    The compiled pass hands these two addresses from function to function and each function
+    unpacks what it uses: unpacking costs a few loads, while passing the three NamedTuples of
+    ~60 arrays by value cost ~0.2 us per call (measured on the lifted ellipsoid rig).
+    """
+    m = unpack_model(m_rec)
+    d, s = unpack_entry(m, e_rec)
+    return m, d, s
