@@ -56,12 +56,11 @@ def culled(m, d, g):
     return False
 
 
-@numba.njit(**_JIT)
-def geom_wrench(m_rec, e_rec, g, omega, v_ref, p_ref, com, wrench, elem_force):
+@numba.njit(inline="always", **_JIT)
+def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
     """Add to wrench (6,) the RFT wrench on tagged geom g at its body's pose, moving with angular
     velocity omega (3,) [rad/s] and linear velocity v_ref (3,) [m/s] at the world point p_ref
     (3,); torque about com (3,). Writes the geom's rows of elem_force. Returns #acting."""
-    m, d, _ = unpack(m_rec, e_rec)
     b = m.tbody_bodyid[m.tgeom_tbody[g]]
     start = m.tgeom_elemadr[g]
     stop = start + m.tgeom_elemnum[g]
@@ -72,9 +71,15 @@ def geom_wrench(m_rec, e_rec, g, omega, v_ref, p_ref, com, wrench, elem_force):
             m.coef, m.alpha_y, m.zeta, m.surface_z, m.use_region != 0, m.region,
             wrench, elem_force,
         )  # fmt: skip
-    key = m.material_key
-    rot = d.xmat[b]
-    pos = d.xpos[b]
+    return _python_geom_wrench(
+        m.material_key, start, stop, d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com, wrench,
+        elem_force,
+    )  # fmt: skip
+
+
+@numba.njit(**_JIT)
+def _python_geom_wrench(key, start, stop, rot, pos, omega, v_ref, p_ref, com, wrench, elem_force):
+    """geom_wrench for a medium given by Python callables (object mode: needs the GIL)."""
     with numba.objmode(acting="int64"):
         acting = python_material.geom_wrench(
             key, start, stop, rot, pos, omega, v_ref, p_ref, com, wrench, elem_force
@@ -95,7 +100,7 @@ def twist_wrench(m_rec, e_rec, k, v, omega, out):
     for g in range(m.tbody_geomadr[k], m.tbody_geomadr[k] + m.tbody_geomnum[k]):
         if s.cull[g]:
             continue
-        acting += geom_wrench(m_rec, e_rec, g, omega, v, d.xipos[b], d.xipos[b], out, s.scratch)
+        acting += geom_wrench(m, d, g, omega, v, d.xipos[b], d.xipos[b], out, s.scratch)
         evaluated += m.tgeom_elemnum[g]
     return evaluated, acting
 
@@ -137,7 +142,7 @@ def pure_wrenches(m_rec, e_rec):
         if s.frz[k]:
             continue
         acting += geom_wrench(
-            m_rec, e_rec, g, d.cvel[b, :3], d.cvel[b, 3:], d.subtree_com[m.tbody_rootid[k]],
+            m, d, g, d.cvel[b, :3], d.cvel[b, 3:], d.subtree_com[m.tbody_rootid[k]],
             d.xipos[b], s.wrench[b], s.elem_force,
         )  # fmt: skip
         evaluated += m.tgeom_elemnum[g]

@@ -50,11 +50,12 @@ free rigid bodies (a free joint, no jointed or massive descendants); bodies in m
 pure model, since their actuator and constraint forces are not known when the field runs (MuJoCo
 computes them after the passive forces).
 
-Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and
-wrenches (force [N], torque about the CoM [N m]), both in world coordinates. Compiled; the
-arguments ``m``, ``d``, ``s`` are the field's tables, the MjData's arrays and the field's state
-for that MjData, unpacked from the record addresses ``m_rec, e_rec`` (``mjrft.field.tables``). ``tests/field_reference.py`` states the same rules
-plainly in NumPy, and the tests check this code against it.
+Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and wrenches
+(force [N], torque about the CoM [N m]), both in world coordinates. Compiled; the arguments ``m``,
+``d``, ``s`` are the field's tables, the MjData's arrays and the field's state for that MjData,
+unpacked from the record addresses ``m_rec, e_rec`` (``mjrft.field.tables``).
+``tests/field_reference.py`` states the same rules plainly in NumPy, and the tests check this code
+against it.
 """
 
 from __future__ import annotations
