@@ -124,9 +124,10 @@ def main() -> None:
     b, root = int(fm.tbody_bodyid[0]), int(fm.tbody_rootid[0])
     start, stop = int(fm.tgeom_elemadr[0]), int(fm.tgeom_elemadr[0] + fm.tgeom_elemnum[0])
     wargs = (
-        fm.elem_pos, fm.elem_normal, fm.elem_area, start, stop, d.xmat[b].reshape(3, 3).copy(),
-        d.xpos[b].copy(), d.cvel[b, :3].copy(), d.cvel[b, 3:].copy(), d.subtree_com[root].copy(),
-        d.xipos[b].copy(), fm.coef, fm.alpha_y, fm.zeta, fm.surface_z, False, np.zeros((2, 3)),
+        fm.elem_pos, fm.elem_normal, fm.elem_area, start, stop, fm.coef, fm.alpha_y, fm.zeta,
+        fm.surface_z, False, np.zeros((2, 3)), d.xmat[b].reshape(3, 3).copy(), d.xpos[b].copy(),
+        d.cvel[b, :3].copy(), d.cvel[b, 3:].copy(), d.subtree_com[root].copy(),
+        d.xipos[b].copy(),
     )  # fmt: skip
     n_el = len(fm.elem_area)
     w1, e1 = np.zeros(6), np.zeros((n_el, 3))

@@ -1,4 +1,6 @@
-"""A straightforward vectorised NumPy implementation of DESIGN.md section 2: the speed baseline.
+"""A straightforward vectorised NumPy implementation of the element law: the speed baseline.
+
+The law is docs/design.md section 2.
 
 Written the obvious way (angles via arctan2, the Fourier phases' cosines and sines evaluated
 directly, np.cross for the frame), as a user would first write it. benchmarks/kernel.py times the

@@ -1,4 +1,4 @@
-"""Stability map of passive bodies resting in the granular medium (issue 4, measurement side).
+"""Stability map of passive bodies resting in the granular medium (the low-speed treatment's test).
 
 What it does: for every combination of shape (sphere, mole-crab ellipsoid) x mass (1 g ... 100 kg,
 size scaled at constant density) x timestep x integrator x low-speed treatment, it builds a free
@@ -20,7 +20,7 @@ body tagged for the granular field, releases it at rest with its lowest point on
 * per run: peak and final depth, the final depth's relative error against ``d_qs`` and ``d_dyn``,
   drift over the hold phase, creep rate, post-settle speeds, step-frequency oscillation (reversals
   of the linear or angular velocity), swing of the vertical and size of the lateral RFT force
-  over the last second, maximum tilt, energy gained over a step against the issue's tolerance
+  over the last second, maximum tilt, energy gained over a step against the stability tolerance
   (net of the work the lowering force does over that step: the criterion is about the medium,
   and a user force is not passive), and failures (exceptions such as the field's
   FloatingPointError, NaN, MuJoCo resets).
@@ -102,9 +102,9 @@ SHAPES: tuple[str, ...] = ("sphere", "ellipsoid")
 N_TRIANGLES = 600
 MATERIAL = "glass_beads"
 
-#: Issue 4 acceptance thresholds, used for the pass/fail columns.
+#: Stability criteria (docs/stability.md), used for the pass/fail columns.
 DEPTH_TOL = 0.05  # relative error of the settle depth against d_dyn (drop) or d_qs (lower)
-DRIFT_TOL_M = 1e-4  # drift over the hold (10 s in the issue) [m]
+DRIFT_TOL_M = 1e-4  # drift over a 10 s hold [m]
 SPEED_TOL = 1e-5  # post-settle speed [m/s]
 OSC_TOL = 0.05  # fraction of steps (last second) where the velocity or spin reverses
 E_ABS_TOL_J = 1e-9  # energy gain per step: E_ABS_TOL_J + E_REL_TOL * |E|
@@ -178,7 +178,7 @@ class Result:
     egain_steps: int = 0  # steps whose gain exceeds that tolerance
     e_hold_J: float = math.nan  # E(end) - E(t_settle): net energy change over the hold
     wall_s: float = math.nan
-    fails: str = ""  # issue-4 criteria not met: depth, drift, speed, osc, energy, run
+    fails: str = ""  # criteria not met: depth, drift, speed, osc, energy, run
 
 
 # --------------------------------------------------------------------------- model and depths
@@ -474,7 +474,7 @@ def measure(
     fails = []
     if not abs(res.err_ref) <= DEPTH_TOL:
         fails.append("depth")
-    if not res.drift_m <= DRIFT_TOL_M * case.hold_s / 10.0:  # issue: 0.1 mm over 10 s
+    if not res.drift_m <= DRIFT_TOL_M * case.hold_s / 10.0:  # 0.1 mm over 10 s
         fails.append("drift")
     if not res.v_post_m_s <= SPEED_TOL:
         fails.append("speed")

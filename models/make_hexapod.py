@@ -187,11 +187,11 @@ WHAT
 
 SOURCES OF THE NUMBERS
   alternating tripod gait, continuously rotating C-legs ..... Li, Zhang & Goldman 2013 (and RHex)
-  medium glass beads, zeta 0.33 N/cm^3 ...................... as the other rigs (DESIGN.md 5);
+  medium glass beads, zeta 0.33 N/cm^3 ...................... as the other rigs (docs/rigs.md);
     Li 2013 ran poppy seeds: envs.load("hexapod_sand", material="poppy_seeds_lp") uses those
   legs: reach (hip to tip) {reach:g} m = diameter of the half ring, width {width:g} m,
     thickness {thick:g} m, 3D-printed plastic {dens:g} kg/m^3 ({leg_mass * 1e3:.2f} g each)
-    ..... our choice, in the size range of issue 7's brief (a few hundred grams, leg radius
+    ..... our choice, in the size range of small C-leg robots (a few hundred grams, leg radius
     3-4 cm); Li 2013's exact robot dimensions are not transcribed here
   body box {box} m, {BODY_MASS:g} kg (robot {total:.3f} kg) ....... our choice
   hips at x = {hips_x} m, |y| = {y_out:g} m (front, rear) and {y_mid:g} m (middle:

@@ -2,7 +2,7 @@
 
 Run from anywhere: ``python models/make_meshes.py``. Writes ``models/meshes/root_tip.obj``: the
 root-tip paraboloid of the circumnutation demo (Treers, Cao & Stuart, IEEE RA-L 6(2) 2021;
-DESIGN.md section 5): 6 mm base radius, 35.5 mm long, ~3000 triangles, from
+docs/rigs.md): 6 mm base radius, 35.5 mm long, ~3000 triangles, from
 ``mjrft.geometry.paraboloid``. OBJ frame = shape frame, metres: apex at the origin pointing down
 (-z), flat base cap at z = +0.0355; faces counter-clockwise seen from outside (outward normals).
 """
@@ -19,7 +19,7 @@ sys.path.insert(0, str(HERE.parent))  # run from a checkout without installing
 
 from mjrft import geometry  # noqa: E402
 
-ROOT_RADIUS = 0.006  # m, base radius (DESIGN.md section 5 / mjrft.demos.ROOT_RADIUS)
+ROOT_RADIUS = 0.006  # m, base radius (docs/rigs.md / mjrft.demos.ROOT_RADIUS)
 ROOT_LENGTH = 0.0355  # m, apex to base (mjrft.demos.ROOT_LENGTH)
 ROOT_TRIANGLES = 3000
 

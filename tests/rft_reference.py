@@ -1,4 +1,4 @@
-"""A slow, plainly written per-element RFT, transcribed from DESIGN.md section 2 step by step.
+"""A slow, plainly written per-element RFT, transcribed from docs/design.md section 2 step by step.
 
 Deliberately different from the kernel: explicit angles via atan2, explicit Fourier sums, plain
 Python floats and loops. Used only to check the fast kernel.

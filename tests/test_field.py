@@ -45,7 +45,7 @@ def ball_model(**kw):
 
 
 # A heavy ball shot steeply into the medium keeps moving throughout the comparison runs: RFT is
-# discontinuous where a velocity reverses (that is issue-4 territory), and there round-off
+# discontinuous where a velocity reverses (the low-speed treatment's territory), and there round-off
 # differences between two equivalent paths would grow chaotically instead of staying at 1e-15.
 HEAVY_BALL = BALL.replace('density="2500"', 'density="60000"')
 SHOT = {"v": (0.2, -0.1, -1.0), "w": (3.0, -2.0, 1.0)}

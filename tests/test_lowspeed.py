@@ -251,10 +251,9 @@ def test_without_treatment_the_same_body_does_not_settle():
 
 
 # ------------------------------------------------------------------ 2. energy
-# Before the guards used Euler's own energy balance (lowspeed.step_work), implicitfast at reach
-# 8 gained energy in the first throw (up to 2e3 x the tolerance), and of 12 perturbed throws per
-# case (benchmarks/RESULTS.md, "Euler's energy balance and RK4's stick") these gained up to
-# 900 x at reaches 4 and 8 (the default reach included).
+# Guards on the trapezoid of the power alone (not Euler's own energy balance, step_work) let
+# implicitfast at reach 8 gain energy in the first throw (up to 2e3 x the tolerance), and these
+# perturbed throws gain up to 900 x at reaches 4 and 8 (docs/stability.md, "Energy balances").
 _THROW = (0.3, -0.1, -0.5, 4.0, -2.0, 6.0)
 _THROWN = [
     (integ, reach, _THROW) for reach in (lowspeed.DEFAULT_REACH, 1.0, 8.0) for integ in INTEGRATORS
@@ -387,8 +386,9 @@ def test_slip_and_implicit_never_do_positive_work_over_the_step(semi_implicit):
     assert seen == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP, lowspeed.IMPLICIT}
     # Constructed: xi along x; the other force turns the free motion to (-0.5, 2, 0), and
     # R = W(xi_free) = -1.9 xi_free/|xi_free| (unit mass and inertia, dt = 1) dissipates the free
-    # motion without reversing it, but its work over the step is positive (the old rule slipped):
-    # under RK4 it sticks, only as far as the stick adds no energy (lowspeed.stick_fraction).
+    # motion without reversing it, but its work over the step is positive (a rule that checked
+    # only the dissipation would slip): under RK4 it sticks, only as far as the stick adds no
+    # energy (lowspeed.stick_fraction).
     law = _coulomb_like(np.eye(6))
     xi = np.array([1.0, 0, 0, 0, 0, 0])
     other = np.array([-1.5, 2.0, 0, 0, 0, 0])

@@ -1,4 +1,5 @@
-"""The force kernel against DESIGN.md section 2: analytic cases, symmetries, a reference loop."""
+"""The force kernel against the element law (docs/design.md section 2): analytic cases,
+symmetries, a reference loop."""
 
 import numpy as np
 import pytest
@@ -41,7 +42,7 @@ def test_speed_does_not_matter():
 
 @pytest.mark.parametrize(
     ("beta", "gamma", "az", "ax"),
-    # DESIGN.md section 2.5 (Li 2013 Fig. 2 generic values).
+    # docs/design.md section 2.5 (Li 2013 Fig. 2 generic values).
     [
         (0.0, np.pi / 2, 1.0, 0.0),
         (0.0, 0.0, 0.375, 0.136),

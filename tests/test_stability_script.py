@@ -1,6 +1,6 @@
 """benchmarks/stability.py's energy accounting, against analytic values.
 
-The map's energy criterion (issue 4) is about the medium: the work of the user force that lowers
+The map's energy criterion is about the medium: the work of the user force that lowers
 a body is taken off each step's energy change. Checked here on a body far above the medium under
 gravity and a constant user force, where each integrator's energy change is known exactly.
 """

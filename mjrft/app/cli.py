@@ -250,6 +250,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--version", action="version", version=f"mjrft {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
+    _add_demo(sub)
+    _add_run(sub)
+    return p
+
+
+def _add_demo(sub) -> None:
+    """The ``mjrft demo`` subcommand."""
     d = sub.add_parser(
         "demo",
         help="run the paper's demos and write CSV + PNG plots and a rerun recording",
@@ -283,13 +290,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     d.set_defaults(func=_demo)
 
+
+def _add_run(sub) -> None:
+    """The ``mjrft run`` subcommand."""
     r = sub.add_parser(
         "run",
         help="simulate an MJCF scene with granular forces and write a time series",
         description=(
             "Simulate MODEL.xml with the granular RFT field installed (the medium, material and "
-            "intruding geoms come from the model's <custom> section; see README). Starts from "
-            "keyframe 0 if the model has one. Writes DIR/timeseries.csv (time; per intruding "
+            "intruding geoms come from the model's <custom> section; see docs/mjcf.md). Starts "
+            "from keyframe 0 if the model has one. Writes DIR/timeseries.csv (time; per intruding "
             "body: CoM position and linear velocity, RFT force and torque about the CoM, all in "
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
             "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
@@ -319,7 +329,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--low-speed",
         choices=["stick", "off"],
         default=None,
-        help="low-speed treatment of free bodies (README, 'Stability'): stick holds bodies at "
+        help="low-speed treatment of free bodies (docs/stability.md): stick holds bodies at "
         "rest like static friction, off is the pure model (default: the model's "
         "mjrft:low_speed, else stick)",
     )
@@ -337,9 +347,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="K",
         help="write one CSV row every K steps (default: 1, every step)",
     )
+    _add_recording_options(r)
+    r.set_defaults(func=_run)
+
+
+def _add_recording_options(r) -> None:
+    """``mjrft run``'s rerun recording options."""
     g = r.add_argument_group(
         "rerun recording",
-        "A recording of the run for the rerun viewer (see README, 'Recordings (rerun)'): body "
+        "A recording of the run for the rerun viewer (see docs/recording.md): body "
         "meshes and poses, the medium's surface and region, per-triangle RFT force arrows and "
         "stress colours, per-body RFT force/torque and every sensor as time series. Headless: "
         "nothing is displayed and no port is opened unless --spawn or --connect is given. The "
@@ -392,8 +408,6 @@ def build_parser() -> argparse.ArgumentParser:
         help="also stream to a running rerun viewer at URL (default when given without a URL: "
         f"{DEFAULT_CONNECT_URL})",
     )
-    r.set_defaults(func=_run)
-    return p
 
 
 def _positive_int(text: str) -> int:

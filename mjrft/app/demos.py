@@ -1,6 +1,6 @@
 """The authors' two demos with prescribed trajectories (Treers, Cao & Stuart, RA-L 2021, Sec. V).
 
-Parameters are DESIGN.md section 5 and the authors' released demo script: Li generic coefficients,
+Parameters are docs/rigs.md and the authors' released demo script: Li generic coefficients,
 zeta = 0.33 N/cm^3 (0.8 mm glass beads). Pure computation: no mujoco, no plotting, no files.
 """
 

@@ -81,8 +81,9 @@ PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 #: down), the pitching ellipsoid (pitching and not) and the root tip converge as C n^-p with
 #: p >= 0.85; the rule takes p = 0.8 and C = 3x their envelope (slender shapes converge with
 #: larger C), checked on shapes not used in the fit (capsules, cylinders, a box, slender and
-#: flat ellipsoids). The old rule 0.8 n^-1/2 (6400 triangles at 1 %) was forced by first-order
-#: errors of lattices that cut a mid-plane, gone since the counts across mid-planes are even.
+#: flat ellipsoids). That p ~ 1 needs lattice lines on the mid-planes (even counts across them):
+#: a lattice cutting a mid-plane errs to first order in axis-aligned translations (p = 0.4-0.6),
+#: which would force 0.8 n^-1/2 (6400 triangles at 1 %).
 TOLERANCE_C = 5.2
 TOLERANCE_P = 0.8
 TOLERANCE_FLOOR = 200
@@ -843,7 +844,17 @@ def _warn(message: str, stacklevel: int) -> None:
 
 
 def _checked_elements(vertices: object, faces: object, name: str, *, stacklevel: int) -> ElementSet:
+    """The ElementSet of a mesh after the load-time checks and repairs, step by step."""
     where = f"mesh {name!r}"
+    v, f = _parsed(vertices, faces, where)
+    v, f = _cleaned(v, f, where, stacklevel + 1)
+    topo, f = _consistently_wound(v, f, where, stacklevel + 1)
+    f = _outward(v, f, topo, where, stacklevel + 1)
+    return ElementSet.from_triangles(v, f)
+
+
+def _parsed(vertices: object, faces: object, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """(m, 3) finite float64 vertices and (n, 3) int64 faces indexing them, or ValueError."""
     try:
         v = np.asarray(vertices, dtype=np.float64)
     except (TypeError, ValueError):
@@ -876,6 +887,11 @@ def _checked_elements(vertices: object, faces: object, name: str, *, stacklevel:
             f"(first: face {bad_f[0]} = {f[bad_f[0]].tolist()})"
         )
 
+    return v, f
+
+
+def _cleaned(v: np.ndarray, f: np.ndarray, where: str, stacklevel: int):
+    """Coincident vertices merged, degenerate faces dropped (warned), unused vertices removed."""
     # Merge exactly coincident vertices (keeping first-occurrence order); +0.0 folds -0.0.
     _, first, inverse = np.unique(v + 0.0, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
@@ -907,6 +923,11 @@ def _checked_elements(vertices: object, faces: object, name: str, *, stacklevel:
         remap = np.cumsum(used) - 1
         v, f = v[used], remap[f]
 
+    return v, f
+
+
+def _consistently_wound(v: np.ndarray, f: np.ndarray, where: str, stacklevel: int):
+    """(topology, faces): open meshes warned about, inconsistent winding repaired (warned)."""
     # Topology: edge multiplicities, winding consistency, orientation.
     topo = _edge_topology(f, len(v))
     if not topo.watertight:
@@ -937,6 +958,11 @@ def _checked_elements(vertices: object, faces: object, name: str, *, stacklevel:
         if not _edge_topology(f, len(v)).consistent:
             raise ValueError(f"{where}: face winding still inconsistent after repair")
 
+    return topo, f
+
+
+def _outward(v: np.ndarray, f: np.ndarray, topo, where: str, stacklevel: int) -> np.ndarray:
+    """Faces wound outward (an inward mesh is flipped, warned); inverted components warned."""
     centre = v.mean(axis=0)
     tri = v[f] - centre
     six_vol = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2]))
@@ -962,7 +988,7 @@ def _checked_elements(vertices: object, faces: object, name: str, *, stacklevel:
                     "volume (an inner cavity or an inverted body); left as is",
                     stacklevel,
                 )
-    return ElementSet.from_triangles(v, f)
+    return f
 
 
 class _Topology(NamedTuple):

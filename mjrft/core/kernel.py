@@ -1,4 +1,4 @@
-"""Compiled (numba) RFT kernels for Fourier-form media: the same equations as ``mjrft.rft``.
+"""Compiled (numba) RFT kernels for Fourier-form media: the same equations as ``mjrft.core.rft``.
 
 Layout, chosen from measurements on the project's 2-core machine (benchmarks/kernel.py):
 
@@ -7,20 +7,20 @@ Layout, chosen from measurements on the project's 2-core machine (benchmarks/ker
 2. ``_gather``, scalar and branch-free: every element is written to the next scratch slot and
    the slot advances only if the element acts (submerged, inside the region, leading), so
    trailing and dry elements cost only this pass and no branch is mispredicted;
-3. ``_evaluate``, one branch-free loop that LLVM vectorises with AVX2: the frame of DESIGN 2.2,
-   the sines and cosines of beta and gamma as normalised vector components (beta and gamma are
-   never formed), the Fourier sums by angle addition, and tanh / atanh of f1 / f23 from exp and
-   log polynomials on their bounded arguments (libm's exp/log are scalar calls: 8 ns each
-   here). Per element: 3 square roots and 2 divisions, the rest multiply-adds;
+3. ``_evaluate``, one branch-free loop that LLVM vectorises with AVX2: the frame of
+   docs/design.md 2.2, the sines and cosines of beta and gamma as normalised vector components
+   (beta and gamma are never formed), the Fourier sums by angle addition, and tanh / atanh of
+   f1 / f23 from exp and log polynomials on their bounded arguments (libm's exp/log are scalar
+   calls: 8 ns each here). Per element: 3 square roots and 2 divisions, the rest multiply-adds;
 4. a scalar pass scatters the element forces and accumulates the wrench.
 
 Both drivers share stages 2-4: ``forces`` over world-frame element arrays, and ``body_wrench``,
 which transforms a body's elements from its frame, evaluates only submerged leading ones, writes
-per-element forces and accumulates the body's wrench. Results equal ``mjrft.rft.numpy_forces`` to
+per-element forces and accumulates the body's wrench. Results equal ``rft.numpy_forces`` to
 round-off (tests/test_kernel.py) and do not depend on an element's slot in a chunk. Compiled on
 first use and cached on disk (``cache=True``). Numba's cache does not track callees: after
-editing this file, delete ``mjrft/__pycache__/*.nb[ic]`` or ``mjrft._native`` keeps running the
-old kernel (its cached code includes this one).
+editing this file, delete the ``*.nb[ic]`` files under ``mjrft/`` or the field's compiled pass
+(``mjrft.field.passive``) keeps running the old kernel (its cached code includes this one).
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def _evaluate(buf, k, co, ay, zeta):
         cg = q * inv_r if moving else 1.0  # gamma = -atan2(v^.z, v^.e2)
         sg = -wz * big_a * inv_r if moving else 0.0
         # beta = atan2(nz, n2) + pi/2: cos 2 beta = (nz^2 - n2^2) / rho, sin 2 beta = -2 nz n2 / rho
-        # with rho = n2^2 + nz^2 = 1 - (n . e1)^2 within 2e-3 of 1 (DESIGN 2.2 frame).
+        # with rho = n2^2 + nz^2 = 1 - (n . e1)^2 within 2e-3 of 1 (docs/design.md 2.2 frame).
         n2 = _fma(nx, ex, ny * ey)
         eps = 1.0 - _fma(n2, n2, nz * nz)
         inv_rho = 1.0
@@ -182,7 +182,7 @@ def _evaluate(buf, k, co, ay, zeta):
             ser = _fma(ser, s_sq, 1.0 / (2 * i + 1))
         log_r = _fma(lg, _LN2, 2.0 * sr * ser)
         f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANHF1_SHIFT)
-        # DESIGN 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+        # docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
         s = zeta * buf[8, j]
         g23 = s * _C23 * _fma(0.5, log_r, _ATANHF23_SHIFT)
         sgn = 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
@@ -214,7 +214,7 @@ def _gather(buf, idx, k, i, nx, ny, nz, wx, wy, wz, depth, area, inside):
             wx, wy, wz = wx / m, wy / m, wz / m
     dot = nx * wx + ny * wy + nz * wz  # <= 0: trailing, moving in the plate's plane, or at rest
     if abs(nz) >= HORIZONTAL_PLATE_NZ:
-        # Frame (DESIGN 2.2) from the horizontal velocity, or world x if there is none.
+        # Frame (docs/design.md 2.2) from the horizontal velocity, or world x if there is none.
         m = max(abs(wx), abs(wy))
         if m == 0.0:
             hx, hy = 1.0, 0.0
@@ -271,17 +271,22 @@ def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
 
 @numba.njit(**_JIT)
 def body_wrench(
-    cent, norm, area, start, stop, rot, pos, omega, v_ref, p_ref, com,
-    co, ay, zeta, surface_z, use_region, region, wrench, elem_force,
+    # Model: the body's elements (body frame), then the medium
+    cent, norm, area, start, stop, co, ay, zeta, surface_z, use_region, region,
+    # Data in: the body's pose and motion (world frame)
+    rot, pos, omega, v_ref, p_ref, com,
+    # Data out
+    wrench, elem_force,
 ):  # fmt: skip
     """Add to wrench (6,) the RFT wrench on elements start..stop of a body; returns #acting.
 
-    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2].
-    rot (3, 3) body -> world; pos (3,) body origin [m]; omega (3,) angular velocity [rad/s];
-    v_ref (3,) linear velocity [m/s] of the world point p_ref (3,) moving with the body;
-    com (3,): point about which torque is taken [m]. All world frame.
-    region (2, 3) world box of the medium, used if use_region. elem_force (n, 3): forces [N] are
-    written for elements start..stop (zero where nothing acts).
+    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co (18,)
+    combined coefficients, ay the generic alpha_y, zeta [N/m^3], surface_z [m]; region (2, 3)
+    world box of the medium, used if use_region. rot (3, 3) body -> world; pos (3,) body origin
+    [m]; omega (3,) angular velocity [rad/s]; v_ref (3,) linear velocity [m/s] of the world
+    point p_ref (3,) moving with the body; com (3,): point about which torque is taken [m]; all
+    world frame. elem_force (n, 3): forces [N] are written for elements start..stop (zero where
+    nothing acts).
     """
     buf, idx = _scratch()
     # Flat views and scalar invariants: constant-stride loads and no reloads in the loop below
@@ -354,6 +359,7 @@ def warm_up() -> None:
     out = np.zeros((1, 3))
     forces(one, one, np.ones(1), one, co, 0.1, 1.0, 0.0, out)
     body_wrench(
-        one, one, np.ones(1), 0, 1, np.eye(3), np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3),
-        np.zeros(3), co, 0.1, 1.0, 0.0, False, np.zeros((2, 3)), np.zeros(6), out,
+        one, one, np.ones(1), 0, 1, co, 0.1, 1.0, 0.0, False, np.zeros((2, 3)),
+        np.eye(3), np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), np.zeros(3),
+        np.zeros(6), out,
     )  # fmt: skip

@@ -1,6 +1,6 @@
 """Constants of the 3D RFT element law shared by its NumPy and compiled evaluations.
 
-Treers, Cao & Stuart, RA-L 6(2) 2021 (DESIGN.md section 2): the frame switch for nearly
+Treers, Cao & Stuart, RA-L 6(2) 2021 (docs/design.md section 2): the frame switch for nearly
 horizontal plates and the fitted scaling functions f1, f23 of the velocity decomposition.
 """
 
@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-#: |n_z| at or above this marks a nearly horizontal plate (DESIGN 2.2): its frame comes from v.
+#: |n_z| at or above this marks a nearly horizontal plate (docs/design.md 2.2): its frame comes
+#: from v.
 HORIZONTAL_PLATE_NZ = 1.0 - 1.0e-3
 
-# Fitted scaling functions of the 3D decomposition (Treers et al. 2021, DESIGN 2.7); both map
-# [0, 1] -> [0, 1] with f(0) = 0 and f(1) = 1.
+# Fitted scaling functions of the 3D decomposition (Treers et al. 2021, docs/design.md 2.7); both
+# map [0, 1] -> [0, 1] with f(0) = 0 and f(1) = 1.
 F1_GAIN, F1_SLOPE, F1_SHIFT, F1_NORM = (
     0.440850096954369,
     3.62263982880971,

@@ -1,6 +1,6 @@
 """The 3D granular RFT force kernel: pure functions over element arrays (world frame, SI).
 
-Implements DESIGN.md section 2 (Treers, Cao & Stuart, RA-L 2021, on Li et al., Science 2013).
+Implements docs/design.md section 2 (Treers, Cao & Stuart, RA-L 2021, on Li et al., Science 2013).
 Angles beta and gamma never exist here for Fourier-form media: their sines and cosines are
 normalised vector components and the Fourier terms follow from angle-addition identities. User
 callables receive explicit angles. This module imports no mujoco and holds no state; it is the one
@@ -126,7 +126,7 @@ def numpy_forces(
     out = np.zeros_like(pos)
     depth = surface_z - pos[:, 2]
     v_hat, speed = _unit_rows(vel)
-    # DESIGN 2.1: only submerged, leading, moving elements feel force.
+    # docs/design.md 2.1: only submerged, leading, moving elements feel force.
     active = (depth > 0.0) & (speed > 0.0) & (np.einsum("ij,ij->i", n_hat, v_hat) > 0.0)
     idx = np.flatnonzero(active)
     if idx.size == 0:
@@ -136,7 +136,8 @@ def numpy_forces(
 
 
 def _frame(n_hat: np.ndarray, v_hat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Horizontal unit e2 (x, y) of DESIGN 2.2 for each element; e1 = e2 x z = (e2y, -e2x, 0)."""
+    """Horizontal unit e2 (x, y) of docs/design.md 2.2 for each element; e1 = e2 x z =
+    (e2y, -e2x, 0)."""
     nx, ny, nz = n_hat.T
     flat = np.abs(nz) >= HORIZONTAL_PLATE_NZ
     hx = np.where(flat, v_hat[:, 0], nx)
@@ -158,7 +159,7 @@ def _active_forces(
     c = v_hat[:, 2]
     vt = np.abs(a)
     vn = np.hypot(b, c)
-    # Plate direction in the (e2, z) plane; beta = atan2(nz, n2) + pi/2 (DESIGN 2.4).
+    # Plate direction in the (e2, z) plane; beta = atan2(nz, n2) + pi/2 (docs/design.md 2.4).
     n2 = n_hat[:, 0] * e2x + n_hat[:, 1] * e2y
     nz = n_hat[:, 2]
     rn = np.hypot(n2, nz)
@@ -180,7 +181,7 @@ def _active_forces(
         gamma = -np.arctan2(c, b)
         ax, ay, az = material.alpha_generic(beta, gamma)
 
-    # DESIGN 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+    # docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
     s = material.zeta * depth_area
     g1 = -s * f1(vt) * ay * np.sign(a)
     g23 = s * f23(vn)

@@ -67,8 +67,8 @@ def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
     if m.material_key == 0:
         return kernel.body_wrench(
             m.elem_pos, m.elem_normal, m.elem_area, start, stop,
-            d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com,
             m.coef, m.alpha_y, m.zeta, m.surface_z, m.use_region != 0, m.region,
+            d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com,
             wrench, elem_force,
         )  # fmt: skip
     return _python_geom_wrench(

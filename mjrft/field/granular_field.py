@@ -295,7 +295,7 @@ class GranularField:
         if self.region is not None:
             inside = np.all((pos >= self.region[0]) & (pos <= self.region[1]), axis=1)
             idx, pos = idx[inside], pos[inside]
-        # cvel = [w, v] with v at the subtree CoM of the body's root (DESIGN.md section 3).
+        # cvel = [w, v] with v at the subtree CoM of the body's root (docs/design.md section 3).
         omega, v_ref = data.cvel[b, :3], data.cvel[b, 3:]
         vel = v_ref + np.cross(omega, pos - data.subtree_com[self.model.body_rootid[b]])
         return ElementState(

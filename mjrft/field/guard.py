@@ -2,12 +2,12 @@
 
 MuJoCo has one global ``mjcb_passive``. Installing a Python callable there breaks every model
 compilation in the process: the compiler runs a forward pass on a temporary model that has no
-Python wrapper, and the binding's trampoline raises (DESIGN.md section 3). So the C global points
-to a small *native* guard (a numba ``cfunc``) that forwards to the binding's trampoline only for
-models with an installed field; every other model, including the compiler's temporary ones, never
-enters Python. The guard must be native rather than a ctypes callback: the binding escapes Python
-exceptions with ``longjmp`` out of ``mj_step``, which is harmless across native frames but corrupts
-the interpreter when it crosses a Python frame.
+Python wrapper, and the binding's trampoline raises (docs/design.md section 3). So the C global
+points to a small *native* guard (a numba ``cfunc``) that forwards to the binding's trampoline only
+for models with an installed field; every other model, including the compiler's temporary ones,
+never enters Python. The guard must be native rather than a ctypes callback: the binding escapes
+Python exceptions with ``longjmp`` out of ``mj_step``, which is harmless across native frames but
+corrupts the interpreter when it crosses a Python frame.
 
 For fields of compiled media, the guard also runs the field's whole pass natively
 (``mjrft.field.passive.step``) for every MjData already registered, and enters Python only for an

@@ -1,6 +1,6 @@
 """Low-speed treatment of free bodies: a velocity-level stick/slip step for RFT's forces.
 
-Why: an RFT force depends on the direction of motion, not on the speed (DESIGN.md section 2).
+Why: an RFT force depends on the direction of motion, not on the speed (docs/design.md section 2).
 Near rest it is set-valued, like Coulomb friction: every wrench the medium can supply for some
 direction of motion is a possible reaction of a body at rest. An explicit step evaluates it at
 the current direction only, so a body that the medium could stop within one step overshoots
@@ -250,7 +250,7 @@ def transverse_basis(twist, mass, iw, mm, n):
 
 
 @numba.njit(**_JIT)
-def implicit_wrench(m_rec, e_rec, k, twist, other, mass, iw, ii, dt, semi, w):
+def implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
     """One Newton step of backward Euler across the motion: replaces w (6,) (the pure wrench at
     twist) and returns True, or leaves it and returns False.
 
@@ -260,10 +260,11 @@ def implicit_wrench(m_rec, e_rec, k, twist, other, mass, iw, ii, dt, semi, w):
     homogeneous of degree 0, Euler's theorem). Linearised at c xi, the same direction at the
     speed the step ends with, because a body speeding up from rest (c >> 1) is otherwise
     linearised far outside J's validity. False (step 3 of the treatment decides) if the result
-    is not finite, reverses the motion within the step, or gains energy over it. twist, other
-    (6,): world frame, about the CoM; iw, ii (3, 3): world-axes inertia and its inverse.
+    is not finite, reverses the motion within the step, or gains energy over it. body: tagged
+    body k's (twist, other, mass, iw, ii) (:func:`treat_body`).
     """
     m, _, _ = unpack(m_rec, e_rec)
+    twist, other, mass, iw, ii = body
     mm = np.zeros((6, 6))
     for c in range(3):
         mm[c, c] = mass
@@ -334,7 +335,7 @@ def world_inertia(x, inertia):
 @numba.njit(inline="always", **_JIT)
 def com_velocity(m, d, k):
     """(3,) world velocity [m/s] of tagged body k's CoM: cvel's linear part is at the subtree
-    CoM of the body's root (DESIGN.md section 3)."""
+    CoM of the body's root (docs/design.md section 3)."""
     b = m.tbody_bodyid[k]
     om = d.cvel[b, :3]
     c0 = d.subtree_com[m.tbody_rootid[k]]
@@ -408,23 +409,27 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
         twist[3 + c] = om[c]
         other[c] = mass * gvec[c] + user[c]
         other[3 + c] = tau[c]
+    # The body's terms: twist and other wrenches (6,), mass [kg], world inertia and inverse.
+    body = (twist, other, mass, iw, ii)
     if sq + reach * dxi > 0.0:
         # Stiff across the motion: (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M (module docstring, 2).
         wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
         if (reach * dt) ** 2 * wn2 < sq or not m.jacobian_step > 0.0:
             return PURE
-        if implicit_wrench(m_rec, e_rec, k, twist, other, mass, iw, ii, dt, semi, w):
+        if implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
             return IMPLICIT
         # Implicitly the motion would reverse within the step (or gain work): decide below.
-    return stick_or_slip(m_rec, e_rec, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi,
-                         w, sq + dxi > 0.0)  # fmt: skip
+    return stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, sq + dxi > 0.0)
 
 
 @numba.njit(**_JIT)
-def stick_or_slip(m_rec, e_rec, k, twist, other, v_free, om_free, mass, iw, ii, dt, semi, w, keeps):
+def stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, keeps):
     """Step 3 of the treatment (module docstring): slip on R = W(xi_free) if it cannot stop the
     free motion within the step and adds no energy; else the pure model w if the motion keeps
-    its sense within this step (``keeps``); else stick. Returns the decision; sets w (6,)."""
+    its sense within this step (``keeps``); else stick. Returns the decision; sets w (6,).
+    body: (twist, other, mass, iw, ii) as in :func:`treat_body`; v_free, om_free (3,): the free
+    motion's end twist."""
+    twist, other, mass, iw, ii = body
     n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
     if n2 > 0.0:
         rw = np.zeros(6)

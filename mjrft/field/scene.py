@@ -13,7 +13,7 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick (default) or off
-      <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.lowspeed), default 4
+      <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.field.lowspeed), default 4
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
         <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
                                                          or a tolerance in (0, 1), e.g. 0.02
@@ -188,7 +188,7 @@ def scene_from_model(
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
     ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick" or "off") and stick_reach:
-    the low-speed treatment (``mjrft.lowspeed``).
+    the low-speed treatment (``mjrft.field.lowspeed``).
     """
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")
@@ -211,16 +211,44 @@ def scene_from_model(
         )
     surface = _numeric_field(model, custom, "surface_z", (1,), "one finite number [m]")
     surface_z = 0.0 if surface is None else float(surface[0])
+    region = _region(model, custom)
+    default_tri, default_tol = _default_resolution(model, custom)
+    if "intruders" not in custom:
+        raise SceneError(
+            f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
+            "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
+        )
+    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol)
+    if n_triangles is not None:
+        intruders = tuple(
+            i
+            if i.kind == "mesh"
+            else dataclasses.replace(i, n_triangles=int(n_triangles), tolerance=tolerance)
+            for i in intruders
+        )
+    return Scene(
+        material, surface_z, region, intruders, _low_speed(model, custom, low_speed, stick_reach)
+    )
+
+
+def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:
+    """(2, 3) world box of the medium from mjrft:region, or None."""
     region = _numeric_field(
         model, custom, "region", (6,), "6 finite numbers: xmin ymin zmin xmax ymax zmax [m]"
     )
-    if region is not None:
-        region = region.reshape(2, 3)
-        if not np.all(region[0] < region[1]):
-            raise SceneError(
-                f"<numeric name='{PREFIX}region'> = {region.ravel().tolist()}: each min must be "
-                "below its max (xmin ymin zmin xmax ymax zmax)"
-            )
+    if region is None:
+        return None
+    region = region.reshape(2, 3)
+    if not np.all(region[0] < region[1]):
+        raise SceneError(
+            f"<numeric name='{PREFIX}region'> = {region.ravel().tolist()}: each min must be "
+            "below its max (xmin ymin zmin xmax ymax zmax)"
+        )
+    return region
+
+
+def _default_resolution(model: mujoco.MjModel, custom: dict) -> tuple[float, float | None]:
+    """(default triangles per primitive geom, the tolerance it comes from or None)."""
     tri = _numeric_field(model, custom, "triangles", (1,), "one integer >= 12")
     tol = _numeric_field(model, custom, "tolerance", (1,), "one number in (0, 1)")
     if tri is not None and tol is not None:
@@ -241,22 +269,7 @@ def scene_from_model(
             f"<numeric name='{PREFIX}triangles'> = {default_tri}: expected an integer >= "
             f"{geometry.MIN_TRIANGLES}"
         )
-    if "intruders" not in custom:
-        raise SceneError(
-            f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
-            "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
-        )
-    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol)
-    if n_triangles is not None:
-        intruders = tuple(
-            i
-            if i.kind == "mesh"
-            else dataclasses.replace(i, n_triangles=int(n_triangles), tolerance=tolerance)
-            for i in intruders
-        )
-    return Scene(
-        material, surface_z, region, intruders, _low_speed(model, custom, low_speed, stick_reach)
-    )
+    return default_tri, default_tol
 
 
 def _low_speed(model, custom, mode: str | None, reach: float | None) -> LowSpeed:
