@@ -1,4 +1,4 @@
-"""Command-line interface: ``mjrft demo``. A leaf module: nothing in the core imports it."""
+"""Command-line interface: ``mjrft demo``, ``mjrft run``. Nothing below the app layer imports it."""
 
 from __future__ import annotations
 
@@ -9,14 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
+from mjrft.app.recording_defaults import (
+    DEFAULT_CONNECT_URL,
+    DEFAULT_MAX_ARROWS,
+    DEFAULT_STRESS_MAX_PA,
+)
+
 DEFAULT_DEMO_DIR = "mjrft-demo"
-
-# Recording defaults, repeated here so that `mjrft --help` does not import rerun (mjrft.viz
-# holds the same values; tests/test_viz.py checks they agree).
-DEFAULT_MAX_ARROWS = 400
-DEFAULT_STRESS_MAX_PA = 1.0e4
-DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
-
 
 # Simulated durations of the dynamic rigs in `mjrft demo` [s]: the ellipsoid's whole descent and
 # one full circumnutation turn of the root.

@@ -52,20 +52,17 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from mjrft.app import simulate
+from mjrft.app.recording_defaults import (
+    DEFAULT_CONNECT_URL,
+    DEFAULT_FRAME_PERIOD_S,
+    DEFAULT_MAX_ARROWS,
+    DEFAULT_STRESS_MAX_PA,
+)
 from mjrft.core import geometry
 from mjrft.field.granular_field import GranularField
 
-#: Default frame period [s] of simulated time: 100 frames per simulated second (``every`` = 10
-#: steps at dt = 1 ms). A 10 s run of models/ellipsoid_pitch.xml then takes about 15 MB.
-DEFAULT_FRAME_PERIOD_S = 0.01
 #: Poses and scalars are sent as columns every this many frames (and when the recorder closes).
 FLUSH_FRAMES = 100
-#: Default maximum number of force arrows per body and frame.
-DEFAULT_MAX_ARROWS = 400
-#: Default top of the stress colour scale [Pa] (10 kPa = 1 N/cm^2). In 0.33 N/cm^3 glass beads
-#: the ellipsoid and root rigs stay mostly below it (median 2-3 kPa, 99th percentile 8-15 kPa in
-#: their runs); the plate rig reaches it about 3 cm deep (use a larger stress_max there).
-DEFAULT_STRESS_MAX_PA = 1.0e4
 #: With the automatic arrow scale, a triangle of median area at ``stress_max`` gets this length [m].
 AUTO_ARROW_LENGTH_M = 0.01
 #: Arrow shaft radius as a fraction of the median triangle's edge length sqrt(dA).
@@ -79,8 +76,6 @@ SURFACE_RGBA = (222, 194, 140, 110)
 REGION_RGBA = (150, 120, 70, 255)
 #: Half size of the drawn surface when the MJCF sets no region: model extent times this [-].
 SURFACE_EXTENT_FACTOR = 0.5
-#: gRPC address used by ``connect`` when none is given (rerun's default viewer port).
-DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
 
 # Viridis, sampled at 0, 1/8, ..., 1 (RGB, 0-255); linear interpolation between samples.
 _VIRIDIS = np.array(
