@@ -19,8 +19,6 @@ A wrench added to ``qfrc_passive`` moves the bodies but is invisible to every lo
 from __future__ import annotations
 
 import contextlib
-import threading
-import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -32,8 +30,8 @@ from mjrft.core.material import Material
 from mjrft.field import guard, lowspeed, ownership, passive, python_material
 from mjrft.field.model import BodyElements, body_elements, build_tables, free_rigid
 from mjrft.field.scene import Scene, scene_from_model
-from mjrft.field.state import DataState
-from mjrft.field.tables import N_STATS, STATS
+from mjrft.field.state import DataState, States
+from mjrft.field.tables import STATS
 
 
 @dataclass(frozen=True)
@@ -111,10 +109,8 @@ class GranularField:
         #: Per body of ``body_ids``: the treatment's decision in the most recent pass
         #: (``lowspeed.PURE``, ``STICK``, ``SLIP`` or ``IMPLICIT``).
         self.last_decision = np.zeros(len(self.bodies), dtype=np.int64)
-        self._lock = threading.Lock()
-        self._states: dict[int, DataState] = {}  # MjData address -> its state
-        self._retired = np.zeros(N_STATS, dtype=np.int64)  # counters of states let go
-        self._counted: weakref.WeakSet[DataState] = weakref.WeakSet()  # batch threads' states
+        self._states = States(self._tables, (self.last_wrench, self.last_decision))
+        self._states.on_forget = self._unregister
 
     def _register_python_material(self) -> int:
         fm = (
@@ -160,10 +156,7 @@ class GranularField:
         the low-speed treatment ``stuck``, ``slipping`` and ``implicit`` (body-passes held at
         rest, given the force of their free direction of motion, or moved with the linearly
         implicit force)."""
-        total = self._retired.copy()
-        for st in [*self._states.values(), *self._counted]:
-            total += st.arrays.stats
-        return dict(zip(STATS, (int(x) for x in total), strict=True))
+        return dict(zip(STATS, (int(x) for x in self._states.stats()), strict=True))
 
     def body_element_set(self, body: int) -> ElementSet:
         """All tagged elements of a body as one ElementSet in the body frame."""
@@ -182,36 +175,18 @@ class GranularField:
 
     # ------------------------------------------------------------------ per-MjData state
     def _state(self, data: mujoco.MjData) -> DataState:
-        """The state of an MjData, made on first sight (and forgotten when the MjData is)."""
-        key = data._address
-        st = self._states.get(key)
-        if st is not None and st.data() is data:
-            return st
-        st = DataState(self._tables, (self.last_wrench, self.last_decision), data)
-        with self._lock:
-            old = self._states.get(key)
-            if old is not None:  # an MjData freed at this address before its finalizer ran
-                self._forget(key, old)
-            self._states[key] = st
-        weakref.finalize(data, self._forget, key, st)
-        return st
-
-    def _forget(self, key: int, st: DataState) -> None:
-        with self._lock:
-            if self._states.get(key) is not st:
-                return
-            self._states.pop(key)
-            self._retired += st.arrays.stats
-        if st.registered:
-            guard.unregister_data(key)
-            st.registered = False
+        """The field's state for an MjData (``mjrft.field.state``), made on first sight."""
+        return self._states.of(data)
 
     def _counted_state(self) -> DataState:
         """A state without MjData (a batch thread's), whose counters the field's stats include."""
-        st = DataState(self._tables, (self.last_wrench, self.last_decision), None, ring=1)
-        self._counted.add(st)
-        weakref.finalize(st, _retire, self._retired, st.arrays.stats)
-        return st
+        return self._states.counted()
+
+    @staticmethod
+    def _unregister(key: int, st: DataState) -> None:
+        if st.registered:
+            guard.unregister_data(key)
+            st.registered = False
 
     def _raise_bad(self, data: mujoco.MjData, status: int) -> None:
         be = self.bodies[-1 - status]
@@ -304,14 +279,7 @@ class GranularField:
 
     def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
         """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""
-        out = np.array(data.xfrc_applied)
-        st = self._states.get(data._address)
-        if st is not None and st.owned and st.data() is data:
-            rows = self.body_ids
-            current = out[rows]
-            assigned = np.any(current != st.arrays.written[rows], axis=1)
-            out[rows] = np.where(assigned[:, None], current, st.arrays.user[rows])
-        return out
+        return ownership.user_part(data, self._states.find(data), self.body_ids)
 
     # ------------------------------------------------------------------ installed path
     @contextlib.contextmanager
@@ -342,31 +310,15 @@ class GranularField:
             status, st.arrays.status[0] = int(st.arrays.status[0]), passive.OK
             self._raise_bad(data, status)  # the native pass failed on this MjData just now
         if not st.owned:
-            self._take_ownership(data, st)
+            ownership.take(data, st, self.body_ids, self._states.owned())
+            if self._native:
+                guard.register_data(self.model, data._address, st.address)
+                st.registered = True
         self._run(st, data, passive.INSTALLED)
-
-    def _take_ownership(self, data: mujoco.MjData, st: DataState) -> None:
-        """First installed pass on an MjData: its tagged rows are the user's, or, for a copy of
-        a tracked MjData, the user part behind the write they carry (ownership.adopt)."""
-        rows = self.body_ids
-        current = np.array(data.xfrc_applied[rows])
-        rings = [o.arrays.ring for o in list(self._states.values()) if o is not st and o.owned]
-        st.arrays.user[rows] = ownership.adopt(current, rings)
-        st.arrays.written[rows] = current
-        st.arrays.rk4[:] = 0.0
-        st.owned = True
-        if self._native:
-            guard.register_data(self.model, data._address, st.address)
-            st.registered = True
 
     def _release_all(self) -> None:
         """Leaving ``installed()``: every MjData gets back its user part; states are let go."""
-        for key, st in list(self._states.items()):
+        for st in self._states.forget_all():
             data = st.data()
             if data is not None and st.owned:
-                data.xfrc_applied[:] = self.user_xfrc(data)
-            self._forget(key, st)
-
-
-def _retire(total: np.ndarray, stats: np.ndarray) -> None:
-    total += stats
+                data.xfrc_applied[:] = ownership.user_part(data, st, self.body_ids)

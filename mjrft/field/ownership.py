@@ -73,3 +73,25 @@ def adopt(current: np.ndarray, rings: list[np.ndarray]) -> np.ndarray:
             if hits.size:
                 return ring[1 + hits[-1], 1].copy()
     return current.copy()
+
+
+def take(data, st, rows: np.ndarray, others: list) -> None:
+    """First installed pass on an MjData: its tagged rows (body ids ``rows``) are the user's or,
+    for a copy of a tracked MjData, the user part behind the write they carry (:func:`adopt`
+    over the rings of the ``others``' states)."""
+    current = np.array(data.xfrc_applied[rows])
+    st.arrays.user[rows] = adopt(current, [o.arrays.ring for o in others if o is not st])
+    st.arrays.written[rows] = current
+    st.arrays.rk4[:] = 0.0
+    st.owned = True
+
+
+def user_part(data, st, rows: np.ndarray) -> np.ndarray:
+    """(nbody, 6) xfrc_applied without the field's contribution: rows that still hold what the
+    field wrote show the user part, rows assigned since show what was assigned."""
+    out = np.array(data.xfrc_applied)
+    if st is not None and st.owned:
+        current = out[rows]
+        assigned = np.any(current != st.arrays.written[rows], axis=1)
+        out[rows] = np.where(assigned[:, None], current, st.arrays.user[rows])
+    return out

@@ -8,6 +8,7 @@ field share nothing but the static tables and the field's report arrays.
 
 from __future__ import annotations
 
+import threading
 import weakref
 
 import mujoco
@@ -67,6 +68,7 @@ class DataState:
         self.ref = None if data is None else weakref.ref(data)
         self.owned = False
         self.registered = False
+        self.finalizer: weakref.finalize | None = None
         self.mjdata, time_address = _mjdata_arrays(data, nb, fm.ngeom)
         i64 = lambda *shape: np.zeros(shape, dtype=np.int64)  # noqa: E731
         self.arrays = FieldData(
@@ -91,3 +93,78 @@ class DataState:
     def data(self) -> mujoco.MjData | None:
         """The MjData, if it is still alive."""
         return None if self.ref is None else self.ref()
+
+
+class States:
+    """The DataStates of one field, keyed by MjData address (made on first sight, forgotten with
+    the MjData), and the counters of states let go."""
+
+    def __init__(self, tables: StaticTables, report: tuple[np.ndarray, np.ndarray]) -> None:
+        self._tables, self._report = tables, report
+        self._lock = threading.RLock()
+        self._by_data: dict[int, DataState] = {}
+        self._retired = np.zeros(N_STATS, dtype=np.int64)
+        self._counted: weakref.WeakSet[DataState] = weakref.WeakSet()  # batch threads' states
+        #: Called with (address, state) when a state is let go (the guard forgets it).
+        self.on_forget = None
+
+    def of(self, data: mujoco.MjData) -> DataState:
+        """The state of an MjData, made on first sight."""
+        key = data._address
+        st = self._by_data.get(key)
+        if st is not None and st.data() is data:
+            return st
+        st = DataState(self._tables, self._report, data)
+        with self._lock:
+            old = self._by_data.get(key)
+            if old is not None:  # an MjData freed at this address before its finalizer ran
+                self.forget(key, old)
+            self._by_data[key] = st
+        st.finalizer = weakref.finalize(data, self.forget, key, st)
+        return st
+
+    def find(self, data: mujoco.MjData) -> DataState | None:
+        """The state of an MjData if it has one."""
+        st = self._by_data.get(data._address)
+        return st if st is not None and st.data() is data else None
+
+    def forget(self, key: int, st: DataState) -> None:
+        """Let a state go (its MjData was freed, or the field was uninstalled)."""
+        with self._lock:
+            if self._by_data.get(key) is not st:
+                return
+            self._by_data.pop(key)
+            self._retired += st.arrays.stats
+        if st.finalizer is not None:
+            st.finalizer.detach()
+        if self.on_forget is not None:
+            self.on_forget(key, st)
+
+    def forget_all(self) -> list[DataState]:
+        """Let every state go; returns them."""
+        states = list(self._by_data.items())
+        for key, st in states:
+            self.forget(key, st)
+        return [st for _, st in states]
+
+    def counted(self) -> DataState:
+        """A state without MjData (a batch thread's) whose counters ``stats`` includes."""
+        st = DataState(self._tables, self._report, None, ring=1)
+        self._counted.add(st)
+        weakref.finalize(st, _retire, self._retired, st.arrays.stats)
+        return st
+
+    def owned(self) -> list[DataState]:
+        """States whose MjData the installed path owns (ownership of xfrc_applied taken)."""
+        return [st for st in list(self._by_data.values()) if st.owned]
+
+    def stats(self) -> np.ndarray:
+        """(N_STATS,) counters summed over every state, past and present."""
+        total = self._retired.copy()
+        for st in [*self._by_data.values(), *self._counted]:
+            total += st.arrays.stats
+        return total
+
+
+def _retire(total: np.ndarray, stats: np.ndarray) -> None:
+    total += stats
