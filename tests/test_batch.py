@@ -96,3 +96,26 @@ def test_threaded_rft_pass_equals_one_thread_and_counts_every_copy():
     bf.forward()
     with pytest.raises(FloatingPointError, match="simulation 6"):
         bf.step()
+
+
+def test_a_batch_refuses_to_step_from_two_threads_at_once():
+    import threading
+
+    m = simulate.load_model(MODELS / "sphere_drop.xml")
+    bf = BatchedField(GranularField(m, n_triangles=100), nsim=2, nthread=1)
+    bf.reset()
+    errors = []
+    with bf._stepping:  # another thread is inside step()
+
+        def second():
+            try:
+                bf.step()
+            except RuntimeError as exc:
+                errors.append(str(exc))
+
+        t = threading.Thread(target=second)
+        t.start()
+        t.join()
+    assert errors and "one thread at a time" in errors[0]
+    bf.step()  # once the other call is done, stepping works again
+    bf.close()

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
@@ -79,6 +80,7 @@ class BatchedField:
             for e in self._entries
         ]
         self._starts = bounds[:-1].tolist()
+        self._stepping = threading.Lock()
         self._pool = ThreadPoolExecutor(n_rft - 1) if n_rft > 1 else None
 
     def _copy_entries(self, st, sims: range) -> np.ndarray:
@@ -125,8 +127,21 @@ class BatchedField:
         """Advance every simulation by nstep substeps with granular forces acting in each.
 
         The derived fields must describe the current states: they do after ``reset``, ``step``
-        and ``forward``; call ``forward`` after writing states yourself.
+        and ``forward``; call ``forward`` after writing states yourself. One thread at a time
+        (the batch's work arrays are shared by its copies): a second concurrent call raises
+        RuntimeError.
         """
+        if not self._stepping.acquire(blocking=False):
+            raise RuntimeError(
+                "BatchedField.step is already running in another thread; a batch steps from one "
+                "thread at a time (make one BatchedField per thread)"
+            )
+        try:
+            self._step(nstep)
+        finally:
+            self._stepping.release()
+
+    def _step(self, nstep: int) -> None:
         vel = mujoco.mjtStage.mjSTAGE_VEL.value
         for _ in range(nstep):
             if self._pool is None:
