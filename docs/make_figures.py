@@ -1,4 +1,4 @@
-"""Regenerate the README's per-rig figures: ``python docs/make_figures.py`` (about a minute).
+"""Regenerate the per-rig figures of docs/rigs.md: ``python docs/make_figures.py`` (about a minute).
 
 Runs every rig in models/ with the granular field for a few simulated seconds at a modest
 triangle count (the root rig's mesh keeps its own 3120 triangles) and writes the paper-style

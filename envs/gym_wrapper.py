@@ -2,7 +2,7 @@
 
 ::
 
-    from envs.gym_wrapper import GymnasiumEnv
+    from mjrft.envs.gym_wrapper import GymnasiumEnv
     env = GymnasiumEnv("hexapod_sand", control_timestep=0.02)   # or GymnasiumEnv(dm_env_instance)
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())

@@ -130,15 +130,14 @@ def step_work(
     The trapezoid ``w . (xi + xi_end)``: over a step with constant forces the kinetic energy
     changes by ``dt/2 (w + other) . (xi + xi_end)``, and RK4 moves the body along that mean
     twist, so the work of the other forces cancels with their potential. MuJoCo's Euler,
-    implicit and implicitfast (``semi_implicit``) move it with the end twist instead
-    (semi-implicit Euler), so a constant force F_c (gravity, the user's force) does
-    ``dt F_c . v_end`` of work while the kinetic energy counts ``dt/2 F_c . (v + v_end)``:
-    the balance gains ``-dt^2/(2m) F_c . (F_c + f)``, f the medium's force. That is positive
-    when the medium decelerates a sinking body (F_c down, F_c + f up) and is the gain the
-    slow-lowering map flagged (benchmarks/RESULTS.md, "Euler's energy balance and RK4's
-    stick"); the rotation has no potential and keeps the trapezoid. Arguments: (6,) wrench,
-    start and end twists and the other wrenches, world frame, as in :func:`treat`; mass [kg];
-    dt [s].
+    implicit and implicitfast (``semi_implicit``) move it with the end twist instead (semi-
+    implicit Euler), so a constant force F_c (gravity, the user's force) does ``dt F_c . v_end``
+    of work while the kinetic energy counts ``dt/2 F_c . (v + v_end)``: the balance gains
+    ``-dt^2/(2m) F_c . (F_c + f)``, f the medium's force. That is positive when the medium
+    decelerates a sinking body (F_c down, F_c + f up) and is the gain the slow-lowering map
+    flagged (docs/stability.md, "Energy balances"); the rotation has no potential and keeps the
+    trapezoid. Arguments: (6,) wrench, start and end twists and the other wrenches, world frame,
+    as in :func:`treat`; mass [kg]; dt [s].
     """
     p = float(np.asarray(w, dtype=float) @ (np.asarray(twist) + np.asarray(end)))
     if semi_implicit:
@@ -224,7 +223,7 @@ def treat(
       implicit: False keeps the pure model for slow moving bodies (step 2): the explicit
         step, which rocks a slowly sinking body (docs/stability.md, "Rocking"). The field
         always passes True; under RK4 its later stages keep the first stage's twist and
-        implicit correction (mjrft._native.rk4_hold).
+        implicit correction (mjrft.field.rk4).
       semi_implicit: True where positions advance with the step's end velocity (MuJoCo's
         Euler, implicit, implicitfast), False for RK4: the energy balance the implicit and
         slip guards use (:func:`step_work`). The field passes the model's integrator.
@@ -426,8 +425,8 @@ def rk4_stage_held(t: float, h: float, record: list[float]) -> bool:
 class ReferenceField:
     """The installed pass written plainly: install ``apply`` as MuJoCo's passive callback.
 
-    Per MjData: the user part of each tagged row and what was written (ownership: a row that
-    differs from what was written was assigned by the user), the RK4 record and the modes
+    Per MjData: the user part of each tagged row and what was written (ownership: a component
+    that differs from what was written was assigned by the user), the RK4 record and the modes
     stage 1 chose. ``decisions`` holds the decisions of the last evaluated stage 1.
     """
 
@@ -447,7 +446,7 @@ class ReferenceField:
             d.time, m.opt.timestep, st["record"]
         )
         current = np.array(d.xfrc_applied[rows])
-        assigned = np.any(current != st["written"], axis=1)
+        assigned = current != st["written"]
         st["user"][assigned] = current[assigned]
         user = np.zeros((m.nbody, 6))
         user[rows] = st["user"]

@@ -41,10 +41,11 @@ def test_sphere_moving_down_converges_to_analytic_force():
         errors.append(abs(w.force[2] - exact) / exact)
     order = np.polyfit(np.log(counts), np.log(errors), 1)[0]
     print(f"sphere, straight down: relative errors {errors}, order n^{order:.2f}")
-    # Observed (cube-sphere): -6.3%, -2.7%, -1.1%, -0.52% at 260, 972, 4032, 16132 triangles
-    # (-0.25% at 64k): an underestimate falling as n^-0.6 -> n^-0.5, i.e. first order in the
-    # edge length h. Area alone converges as O(h^2); the force is only O(h) because leading vs
-    # trailing is decided per flat facet, which misplaces the cut at the equator by O(h).
+    # Observed (cube-sphere, lattice lines on the mid-planes): -2.92, -0.71, -0.19, -0.045 % at
+    # 256, 1040, 3888, 16128 triangles (docs/accuracy.md): an underestimate falling as ~1/n,
+    # i.e. second order in the edge length h, because the equator where leading turns trailing
+    # runs along a lattice line. A lattice that cuts the equator decides that row of facets all or
+    # nothing, which is first order in h (n^-0.5).
     assert errors[-1] < 1e-2
     assert -1.2 < order < -0.4
     assert all(e1 > e2 for e1, e2 in itertools.pairwise(errors))

@@ -351,6 +351,28 @@ def test_user_rows_survive_assignment_between_steps_and_are_restored():
     np.testing.assert_array_equal(d.xfrc_applied[1], 2 * push)  # the field's part is removed
 
 
+def test_writing_one_component_assigns_only_that_component():
+    """A 0.1 mN push written into one component of a resting ball's row is the user's part of
+    that component only: the RFT force in the other components stays the field's (read as the
+    user's, it would be added again every step and throw the ball out of the medium)."""
+    m = ball_model()
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    with fld.installed():
+        for _ in range(300):  # released partly submerged: sinks a little and rests
+            mujoco.mj_step(m, d)
+        rest = d.qpos[2]
+        assert fld.last_wrench[1, 2] > 0.5 * m.body_mass[1] * 9.81  # the medium carries it
+        d.xfrc_applied[1, 0] = 1e-4
+        for _ in range(500):
+            mujoco.mj_step(m, d)
+        user = fld.user_xfrc(d)[1]
+        np.testing.assert_array_equal(user, [1e-4, 0, 0, 0, 0, 0])
+        np.testing.assert_array_equal(d.xfrc_applied[1], user + fld.last_wrench[1])
+    assert abs(d.qpos[2] - rest) < 1e-3  # still in the medium, not thrown out
+    np.testing.assert_array_equal(d.xfrc_applied[1], [1e-4, 0, 0, 0, 0, 0])  # restored
+
+
 def test_copied_data_keeps_only_the_user_part():
     m = heavy_model()
     fld = GranularField(m)

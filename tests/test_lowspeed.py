@@ -150,7 +150,7 @@ def test_released_body_settles_and_stays(shape, mass, dt, integrator):
 def test_slowly_lowered_body_rests_at_the_quasi_static_depth(shape, integrator):
     """Held by a user force that is lowered slowly: ends where F_z(d) = m g (brentq on the core
     model), within 5 %. Sphere only: the slender ellipsoid's lowered end depth depends on the
-    small tilts its slip phases pick up (benchmarks/RESULTS.md, "Stability map")."""
+    small tilts its slip phases pick up (docs/stability.md, "Results")."""
     xml, size = body_xml(shape, 1.0)
     m = mujoco.MjModel.from_xml_string(xml)
     m.opt.timestep, m.opt.integrator = 0.002, INTEGRATORS[integrator]
@@ -184,7 +184,7 @@ def test_very_slowly_lowered_ellipsoid_neither_rocks_nor_tips(integrator):
     """Lowered over 200 of its time scales sqrt(d_qs / g) (10x the map's ramp): the sinking is
     slow for long, where RFT is stiff across the motion. With the explicit pure model for the
     moving phases the ellipsoid rocked at the step frequency and tipped over (93 deg at 1 ms,
-    1 g to 100 kg; benchmarks/RESULTS.md, "Rocking"); the linearly implicit step keeps it
+    1 g to 100 kg; docs/stability.md, "Rocking"); the linearly implicit step keeps it
     upright at d_qs. Under RK4 the pure model in every stage tipped it too; its later stages
     now keep the first stage's twist and implicit correction."""
     xml, size = body_xml("ellipsoid", 1.0)

@@ -77,10 +77,10 @@ PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 
 #: Accuracy knob: n = max(TOLERANCE_FLOOR, ceil((TOLERANCE_C / tol) ** (1 / TOLERANCE_P)))
 #: triangles for a relative RMS force tolerance tol. Fitted in benchmarks/pareto.py
-#: (benchmarks/RESULTS.md, "Speed vs accuracy"): errors of a sphere (spinning and straight
-#: down), the pitching ellipsoid (pitching and not) and the root tip converge as C n^-p with
-#: p >= 0.85; the rule takes p = 0.8 and C = 3x their envelope (slender shapes converge with
-#: larger C), checked on shapes not used in the fit (capsules, cylinders, a box, slender and
+#: (benchmarks/RESULTS.md, "Speed vs accuracy"; docs/accuracy.md): errors of a sphere (spinning
+#: and straight down), the pitching ellipsoid (pitching and not) and the root tip converge as C
+#: n^-p with p >= 0.85; the rule takes p = 0.8 and C = 3x their envelope (slender shapes converge
+#: with larger C), checked on shapes not used in the fit (capsules, cylinders, a box, slender and
 #: flat ellipsoids). That p ~ 1 needs lattice lines on the mid-planes (even counts across them):
 #: a lattice cutting a mid-plane errs to first order in axis-aligned translations (p = 0.4-0.6),
 #: which would force 0.8 n^-1/2 (6400 triangles at 1 %).
@@ -290,8 +290,7 @@ class _Family:
     keep the counts across their mid-planes even, so a lattice line runs along each mid-plane: a
     translation along a principal axis then has its leading boundary (and a level waterline its
     wet boundary) along lattice lines instead of cutting a row of facets, whose all-or-nothing
-    decision is a first-order error, 3-15x larger at the same triangle count
-    (benchmarks/RESULTS.md, "Speed vs accuracy", parity table).
+    decision is a first-order error (docs/accuracy.md, "Convergence to an analytic force").
     """
 
     def __init__(

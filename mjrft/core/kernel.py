@@ -18,9 +18,8 @@ Both drivers share stages 2-4: ``forces`` over world-frame element arrays, and `
 which transforms a body's elements from its frame, evaluates only submerged leading ones, writes
 per-element forces and accumulates the body's wrench. Results equal ``rft.numpy_forces`` to
 round-off (tests/test_kernel.py) and do not depend on an element's slot in a chunk. Compiled on
-first use and cached on disk (``cache=True``). Numba's cache does not track callees: after
-editing this file, delete the ``*.nb[ic]`` files under ``mjrft/`` or the field's compiled pass
-(``mjrft.field.passive``) keeps running the old kernel (its cached code includes this one).
+first use and cached on disk (``cache=True``); ``numba_cache.refresh`` (run on import) clears
+that cache when any compiled module changed, since numba itself does not track callees.
 """
 
 from __future__ import annotations
@@ -33,6 +32,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from mjrft.core import numba_cache
 from mjrft.core.law import (
     F1_GAIN,
     F1_NORM,
@@ -45,8 +45,9 @@ from mjrft.core.law import (
     HORIZONTAL_PLATE_NZ,
 )
 
-_TANHF1_SHIFT = math.tanh(F1_SHIFT)
-_ATANHF23_SHIFT = math.atanh(F23_SHIFT)
+numba_cache.refresh()  # before any compiled function of mjrft is loaded from the cache
+_TANH_F1_SHIFT = math.tanh(F1_SHIFT)
+_ATANH_F23_SHIFT = math.atanh(F23_SHIFT)
 _C1 = F1_GAIN / F1_NORM
 _C23 = F23_GAIN / F23_NORM
 #: Elements per chunk: scratch arrays stay in L1 cache.
@@ -181,10 +182,10 @@ def _evaluate(buf, k, co, ay, zeta):
         for i in range(_LOG_TERMS - 2, -1, -1):
             ser = _fma(ser, s_sq, 1.0 / (2 * i + 1))
         log_r = _fma(lg, _LN2, 2.0 * sr * ser)
-        f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANHF1_SHIFT)
+        f1 = _C1 * (_fma(-2.0 * (num + den), y, 1.0) + _TANH_F1_SHIFT)
         # docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
         s = zeta * buf[8, j]
-        g23 = s * _C23 * _fma(0.5, log_r, _ATANHF23_SHIFT)
+        g23 = s * _C23 * _fma(0.5, log_r, _ATANH_F23_SHIFT)
         sgn = 1.0 if a > 0.0 else (-1.0 if a < 0.0 else 0.0)
         g1 = -s * f1 * ay * sgn
         gx = -g23 * ax

@@ -317,8 +317,11 @@ class GranularField:
         self._run(st, data, passive.INSTALLED)
 
     def _release_all(self) -> None:
-        """Leaving ``installed()``: every MjData gets back its user part; states are let go."""
-        for st in self._states.forget_all():
+        """Leaving ``installed()``: every MjData gets back its user part of ``xfrc_applied``; the
+        states stay (``wrench_of`` still reports each MjData's last pass)."""
+        for st in self._states.owned():
             data = st.data()
-            if data is not None and st.owned:
+            if data is not None:
                 data.xfrc_applied[:] = ownership.user_part(data, st, self.body_ids)
+            st.owned = False
+            st.registered = False  # guard.uninstall dropped the model's MjData

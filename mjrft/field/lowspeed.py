@@ -70,17 +70,13 @@ from mjrft.field.tables import unpack
 
 #: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
 MODES = ("stick", "off")
-#: Default ``reach``. With slip limited to forces that do no work over the step, reaches 1, 4
-#: and 8 settle every dropped RK4 body of the stability map and 49, 56, 58 of 60 slowly lowered
-#: ones; 4 and 8 also every Euler/implicitfast body (docs/stability.md, "The reach"). 4 rather
-#: than 8: the speed below which a body counts as slow (its motion would reverse within
-#: ``reach`` steps) stays small, so the pure model keeps more of the motion.
+#: Default ``reach``: the stability map passes every dropped and lowered body at it
+#: (docs/stability.md, "Results"); larger reaches hand more slow motion to the treatment but widen
+#: the range of speeds that do not feel the pure model (docs/stability.md, "The reach").
 DEFAULT_REACH = 4.0
 #: An RK4 step holds the wrench of its first stage over the other three for a body the treatment
 #: stuck or slipped, or whose motion would reverse within this many steps of the change
-#: predicted at the step's start (mjrft.field.rk4). Measured at reach 1: 2, 4, 8 settle 38, 46,
-#: 51 of 60 slowly lowered RK4 cells (all drops settle), but with 2 and 8 a thrown spinning body
-#: gained energy in a step (docs/stability.md, "RK4").
+#: predicted at the step's start (mjrft.field.rk4; docs/stability.md, "RK4"); 4, as the reach.
 RK4_HOLD_STEPS = 4.0
 #: Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
 #: force of the free direction, the pure model linearised implicitly (slow moving body).

@@ -1,12 +1,16 @@
 """Who owns ``xfrc_applied``: the user's part of each intruding body's row survives the field.
 
-``xfrc_applied`` is user input that persists across steps (a controller, the interactive
-viewer's perturbation). The installed field writes the intruding bodies' rows every forward pass,
-so per MjData it remembers the user's part of each such row and what it wrote there
-(``FieldData.user``, ``FieldData.written``). A row that no longer holds what the field wrote was
-assigned by the user, and that value becomes the user's part; otherwise the user's part is
-unchanged. Then row = user + RFT. So user forces are never lost or counted twice, for any number
-of forward passes per step, and leaving ``installed()`` restores the user's values.
+``xfrc_applied`` is user input that persists across steps (a controller, the interactive viewer's
+perturbation). The installed field writes the intruding bodies' rows every forward pass, so per
+MjData it remembers the user's part of each such row and what it wrote there (``FieldData.user``,
+``FieldData.written``). A component that no longer holds what the field wrote was assigned by the
+user, and that value becomes the user's part of that component; the other components keep their
+user part. Then row = user + RFT. Per component, not per row: writing one component
+(``d.xfrc_applied[b, 0] = push``) is an assignment of that component only, and must not turn the
+RFT force left in the row's other components into a user force. A component assigned exactly the
+value the field wrote there reads as unassigned, which changes nothing: the user part and the total
+stay what they were. So user forces are never lost or counted twice, for any number of forward
+passes per step, and leaving ``installed()`` restores the user's values.
 
 A copy of a tracked MjData (``copy.copy``, ``mj_copyData``) carries rows the field wrote. To
 recognise it, each pass also records (written, user) in the MjData's ring of its last
@@ -27,17 +31,13 @@ XFRC_HISTORY = 4096
 
 @numba.njit(cache=True)
 def take_user_part(m_rec, e_rec):
-    """Rows of tagged bodies that differ from what was written were assigned by the user: they
-    become the user part (s.user)."""
+    """Components of tagged rows that differ from what was written were assigned by the user:
+    they become the user part (s.user) of that component."""
     m, d, s = unpack(m_rec, e_rec)
     for k in range(m.tbody_bodyid.shape[0]):
         b = m.tbody_bodyid[k]
-        assigned = False
         for c in range(6):
             if d.xfrc_applied[b, c] != s.written[b, c]:
-                assigned = True
-        if assigned:
-            for c in range(6):
                 s.user[b, c] = d.xfrc_applied[b, c]
 
 
@@ -87,11 +87,10 @@ def take(data, st, rows: np.ndarray, others: list) -> None:
 
 
 def user_part(data, st, rows: np.ndarray) -> np.ndarray:
-    """(nbody, 6) xfrc_applied without the field's contribution: rows that still hold what the
-    field wrote show the user part, rows assigned since show what was assigned."""
+    """(nbody, 6) xfrc_applied without the field's contribution: components that still hold
+    what the field wrote show the user part, components assigned since show what was assigned."""
     out = np.array(data.xfrc_applied)
     if st is not None and st.owned:
         current = out[rows]
-        assigned = np.any(current != st.arrays.written[rows], axis=1)
-        out[rows] = np.where(assigned[:, None], current, st.arrays.user[rows])
+        out[rows] = np.where(current != st.arrays.written[rows], current, st.arrays.user[rows])
     return out

@@ -15,7 +15,7 @@ record of addresses and sizes that the compiled code unpacks into a ``NamedTuple
 
 The records are the only place these layouts are written down: ``pack`` fills one from the
 arrays' NamedTuple, the ``unpack_*`` functions rebuild the NamedTuple in compiled code
-(``tests/test_tables.py`` round-trips every field). The owner of a record keeps its arrays alive
+(``tests/test_paths.py`` round-trips every field). The owner of a record keeps its arrays alive
 while their addresses are published.
 """
 
