@@ -15,7 +15,7 @@ import numpy as np
 from mjrft.core.elements import ElementSet
 from mjrft.field import layout, lowspeed
 from mjrft.field.scene import Intruder, Scene, geom_elements
-from mjrft.field.tables import MODEL_RECORD, FieldModel, pack
+from mjrft.field.tables import MODEL_RECORD, FieldModel, arena, pack
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,6 +124,11 @@ class StaticTables:
         return np.uint64(self.record.ctypes.data)
 
 
+def material_coef(material, material_key: int) -> np.ndarray:
+    """(18,) kernel coefficients of a compiled medium (zeros for a Python one)."""
+    return material.kernel_coefficients if material_key == 0 else np.zeros(18)
+
+
 def build_tables(
     model: mujoco.MjModel,
     scene: Scene,
@@ -145,8 +150,20 @@ def build_tables(
             num.append(int(be.segments[gi + 1] - be.segments[gi]))
             rbound.append(float(model.geom_rbound[g]))
         offset += len(be.areas)
-    i64 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
     f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    i8, f8 = np.int64, np.float64
+    ng, nk = len(geoms), len(bodies)
+    small = arena({  # read every pass: side by side (tables.arena)
+        "tgeom_geomid": ((ng,), i8, geoms), "tgeom_tbody": ((ng,), i8, tbody),
+        "tgeom_elemadr": ((ng,), i8, adr), "tgeom_elemnum": ((ng,), i8, num),
+        "tgeom_rbound": ((ng,), f8, rbound),
+        "tbody_bodyid": ((nk,), i8, [be.body for be in bodies]),
+        "tbody_rootid": ((nk,), i8, [model.body_rootid[be.body] for be in bodies]),
+        "tbody_geomadr": ((nk,), i8, geomadr), "tbody_geomnum": ((nk,), i8, geomnum),
+        "tbody_treat": ((nk,), i8, np.asarray(treat, dtype=i8)),
+        "region": ((2, 3), f8, np.zeros((2, 3)) if scene.region is None else scene.region),
+        "coef": ((18,), f8, material_coef(scene.material, material_key)),
+    })  # fmt: skip
     addr = layout.model_addresses(model)
     material = scene.material
     region = scene.region
@@ -156,22 +173,22 @@ def build_tables(
         elem_pos=f64(np.concatenate([be.centroids for be in bodies])),
         elem_normal=f64(np.concatenate([be.normals for be in bodies])),
         elem_area=f64(np.concatenate([be.areas for be in bodies])),
-        tgeom_geomid=i64(geoms),
-        tgeom_tbody=i64(tbody),
-        tgeom_elemadr=i64(adr),
-        tgeom_elemnum=i64(num),
-        tgeom_rbound=f64(rbound),
-        tbody_bodyid=i64([be.body for be in bodies]),
-        tbody_rootid=i64([model.body_rootid[be.body] for be in bodies]),
-        tbody_geomadr=i64(geomadr),
-        tbody_geomnum=i64(geomnum),
-        tbody_treat=i64(treat),
+        tgeom_geomid=small["tgeom_geomid"],
+        tgeom_tbody=small["tgeom_tbody"],
+        tgeom_elemadr=small["tgeom_elemadr"],
+        tgeom_elemnum=small["tgeom_elemnum"],
+        tgeom_rbound=small["tgeom_rbound"],
+        tbody_bodyid=small["tbody_bodyid"],
+        tbody_rootid=small["tbody_rootid"],
+        tbody_geomadr=small["tbody_geomadr"],
+        tbody_geomnum=small["tbody_geomnum"],
+        tbody_treat=small["tbody_treat"],
         surface_z=float(scene.surface_z),
         use_region=int(region is not None),
-        region=f64(np.zeros((2, 3)) if region is None else region),
+        region=small["region"],
         zeta=float(material.zeta),
         alpha_y=float(material.alpha_y0),
-        coef=f64(material.kernel_coefficients if material_key == 0 else np.zeros(18)),
+        coef=small["coef"],
         material_key=int(material_key),
         treat=int(scene.low_speed.on),
         reach=float(scene.low_speed.reach),

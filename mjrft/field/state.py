@@ -24,6 +24,7 @@ from mjrft.field.tables import (
     RK4_HEAD,
     FieldData,
     MjDataArrays,
+    arena,
     pack,
 )
 
@@ -70,16 +71,23 @@ class DataState:
         self.registered = False
         self.finalizer: weakref.finalize | None = None
         self.mjdata, time_address = _mjdata_arrays(data, nb, fm.ngeom)
-        i64 = lambda *shape: np.zeros(shape, dtype=np.int64)  # noqa: E731
+        f8, i8 = np.float64, np.int64
+        small = arena({  # touched every pass: side by side (tables.arena)
+            "status": ((1,), i8, 0), "cull": ((ng,), i8, 0), "keep": ((nk,), i8, 0),
+            "frz": ((nk,), i8, 0), "slow": ((nk,), i8, 0), "geom_dirty": ((ng,), i8, 1),
+            "decision": ((nk,), i8, 0), "stats": ((N_STATS,), i8, 0),
+            "wrench": ((nb, 6), f8, 0), "user": ((nb, 6), f8, 0), "written": ((nb, 6), f8, 0),
+            "user_in": ((nb, 6), f8, 0), "frozen": ((nk, 12), f8, 0),
+            "rk4": ((RK4_HEAD + RK4_BODY * nk,), f8, 0),
+        })  # fmt: skip
         self.arrays = FieldData(
-            user=np.zeros((nb, 6)), written=np.zeros((nb, 6)), user_in=np.zeros((nb, 6)),
-            wrench=np.zeros((nb, 6)), elem_force=np.zeros((ne, 3)), scratch=np.zeros((ne, 3)),
-            rk4=np.zeros(RK4_HEAD + RK4_BODY * nk), geom_dirty=np.ones(ng, dtype=np.int64),
-            cull=i64(ng), keep=i64(nk), frz=i64(nk), slow=i64(nk), frozen=np.zeros((nk, 12)),
-            decision=i64(nk), stats=i64(N_STATS), status=i64(1),
-            ring=np.zeros((ring + 1, 2, nk, 6)), report_wrench=report[0],
+            **small,
+            elem_force=np.zeros((ne, 3)),
+            scratch=np.zeros((ne, 3)),
+            ring=np.zeros((ring + 1, 2, nk, 6)),
+            report_wrench=report[0],
             report_decision=report[1],
-        )  # fmt: skip
+        )
         self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring})
         self.entry["time"] = time_address
         if data is not None:  # views of an MjData keep it alive: keep only their addresses
