@@ -47,6 +47,7 @@ def test_batch_matches_single_copies_with_different_states_and_controls():
     assert not np.allclose(final[0], final[2])  # the copies really differ
 
 
+@pytest.mark.filterwarnings("ignore::mjrft.core.material.MaterialWarning")  # a stand-in model
 def test_batch_rejects_callable_materials_and_bad_sizes():
     m = simulate.load_model(MODELS / "sphere_drop.xml")
     mat = mjrft.Material.from_callables(lambda b, g: 0 * b + 0.1, lambda b, g: 0 * b + 1.0, 1e5)

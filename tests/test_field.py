@@ -603,7 +603,7 @@ def test_non_finite_state_raises_naming_body_and_interpreter_survives():
 
 
 # ------------------------------------------------------------------ MJCF errors
-def xml_with(custom: str, geom='<geom name="ball" size="0.01"/>'):
+def xml_with(custom: str, geom='<geom name="ball" size="0.01" contype="0" conaffinity="0"/>'):
     return f"""<mujoco><custom>{custom}</custom>
       <worldbody><body name="b"><freejoint/>{geom}</body>
       <geom name="floor" type="plane" size="1 1 0.1"/></worldbody></mujoco>"""

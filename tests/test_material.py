@@ -46,6 +46,7 @@ def test_closely_packed_is_stronger_than_loosely_packed():
     assert cp.alpha(0.0, np.pi / 2)[2] > lp.alpha(0.0, np.pi / 2)[2]
 
 
+@pytest.mark.filterwarnings("ignore::mjrft.core.material.MaterialWarning")  # a stand-in model
 def test_from_callables_default_alpha_y():
     m = mjrft.Material.from_callables(
         lambda b, g: 0.2 + 0 * b + 0.1 * np.cos(g), lambda b, g: 1 + 0 * b, 1e5
@@ -71,20 +72,20 @@ def ok(b, g):
         (lambda: mjrft.Material.generic(1.0, zeta_n_per_cm3=1.0), "exactly one"),
         (lambda: mjrft.Material.preset("sand"), "unknown material preset 'sand'.*glass_beads"),
         (lambda: mjrft.Material.from_callables(ok, ok, -5.0), "zeta"),
-        (lambda: mjrft.Material.from_callables(42, ok, 1.0), "alpha_x.*callable"),
-        (lambda: mjrft.Material.from_callables(ok, lambda b, g: 1.0, 1.0), "alpha_z.*shape"),
+        (lambda: mjrft.Material.from_callables(42, ok, 3e5), "alpha_x.*callable"),
+        (lambda: mjrft.Material.from_callables(ok, lambda b, g: 1.0, 3e5), "alpha_z.*shape"),
         (
             lambda: mjrft.Material.from_callables(
-                ok, lambda b, g: np.where(g > 3, np.nan, 1 + 0 * b), 1.0
+                ok, lambda b, g: np.where(g > 3, np.nan, 1 + 0 * b), 3e5
             ),
             "alpha_z.*non-finite",
         ),
         (
-            lambda: mjrft.Material.from_callables(ok, ok, 1.0, alpha_y=lambda b: b[:3]),
+            lambda: mjrft.Material.from_callables(ok, ok, 3e5, alpha_y=lambda b: b[:3]),
             "alpha_y.*shape",
         ),
         (
-            lambda: mjrft.Material.from_callables(lambda b, g: float(b), ok, 1.0),
+            lambda: mjrft.Material.from_callables(lambda b, g: float(b), ok, 3e5),
             "alpha_x.*raised TypeError.*numpy.vectorize",
         ),
         (lambda: mjrft.Material.from_table({"A00": 1.0, "Q12": 2.0}), "'Q12'"),

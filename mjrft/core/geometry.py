@@ -102,10 +102,14 @@ def triangles_for_tolerance(tol: float) -> int:
         raise ValueError(f"tolerance must be a number in (0, 1), got {tol!r}") from None
     if not (0.0 < t < 1.0):
         raise ValueError(f"tolerance must be in (0, 1) (a relative force error), got {tol!r}")
-    n = max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** (1.0 / TOLERANCE_P)))
+    # In log space: a tiny tolerance (1e-300) would overflow the power before the check below.
+    log_n = (math.log(TOLERANCE_C) - math.log(t)) / TOLERANCE_P
+    n = MAX_TRIANGLES + 1 if log_n > math.log(MAX_TRIANGLES) else None
+    n = n or max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** (1.0 / TOLERANCE_P)))
     if n > MAX_TRIANGLES:
         raise ValueError(
-            f"tolerance {t:g} needs {n} triangles, more than MAX_TRIANGLES = {MAX_TRIANGLES}; "
+            f"tolerance {t:g} needs about 1e{log_n / math.log(10):.1f} triangles, more than "
+            f"MAX_TRIANGLES = {MAX_TRIANGLES}; "
             "the smallest supported tolerance is "
             f"{TOLERANCE_C / MAX_TRIANGLES**TOLERANCE_P:.2g}"
         )

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -181,6 +182,79 @@ def _check_callable(fn: object, name: str, args: tuple[np.ndarray, ...]) -> None
         raise ValueError(f"{name} returned a non-finite value ({out[bad]}) at angle(s) ({at}) rad")
 
 
+class MaterialWarning(UserWarning):
+    """A medium that is legal but almost surely not what was meant (a unit slip, a stand-in)."""
+
+
+#: zeta outside [ZETA_LOW, ZETA_HIGH] N/m^3 draws a warning: granular media lie near 1e4-1e7
+#: N/m^3 (0.8 mm glass beads: 3.3e5), and a value below 1e3 is most likely one in N/cm^3. Above
+#: ZETA_MAX it is refused: no medium is that stiff, and forces on large bodies would overflow.
+ZETA_LOW, ZETA_HIGH, ZETA_MAX = 1e3, 1e9, 1e15
+#: Generic-form coefficients are dimensionless and of order 1 (Li's set: 0.007-0.358); a set
+#: with a larger magnitude than this is refused as a typo or a unit error.
+GENERIC_COEFFICIENT_MAX = 100.0
+#: Angle steps of the dissipation check over (beta, gamma) in [-pi, pi]^2 (2 degrees).
+DISSIPATION_GRID = 181
+
+
+def warn_if_unusual_zeta(z: float, where: str = "zeta") -> None:
+    """Warn (MaterialWarning) if z [N/m^3] is far outside the range of granular media; raise
+    ValueError above ZETA_MAX."""
+    if not z <= ZETA_MAX:
+        raise ValueError(
+            f"{where} = {z:g} N/m^3 is above {ZETA_MAX:g} N/m^3: no granular medium is that "
+            "stiff (1e4-1e7 N/m^3); check the numbers and their unit"
+        )
+    if z < ZETA_LOW:
+        warnings.warn(
+            f"{where} = {z:g} N/m^3 is below {ZETA_LOW:g} N/m^3, tiny for a granular medium "
+            f"(0.8 mm glass beads: 3.3e5 N/m^3): was it given in N/cm^3? In N/m^3 that is "
+            f"{z * N_PER_CM3:g} (mjrft.N_PER_CM3 = 1e6)",
+            MaterialWarning,
+            stacklevel=3,
+        )
+    elif z > ZETA_HIGH:
+        warnings.warn(
+            f"{where} = {z:g} N/m^3 is above {ZETA_HIGH:g} N/m^3, stiffer than any granular "
+            "medium (1e4-1e7 N/m^3); check its unit",
+            MaterialWarning,
+            stacklevel=3,
+        )
+
+
+def dissipation_violation(material: Material) -> tuple[float, float, float] | None:
+    """(work, beta, gamma) at the worst angles [rad] where the medium would push a leading plate
+    along its motion (positive work), or None if it dissipates on the whole angle grid.
+
+    From the element law (docs/design.md 2.8) with the frame of 2.2: a plate's normal is
+    n = sin(b) e2 - cos(b) z, so it leads iff sin(b + g) > 0, and
+    F . v^ = -zeta d dA [f1 alpha_y |v^ . e1| + f23 |v23| (alpha_z sin g + alpha_x cos g)].
+    The medium dissipates iff alpha_y >= 0 and alpha_z sin g + alpha_x cos g >= 0 wherever a
+    plate leads; work is the most negative value of the latter (generic form), or alpha_y.
+    """
+    grid = np.linspace(-np.pi, np.pi, DISSIPATION_GRID)
+    beta, gamma = np.meshgrid(grid, grid, indexing="ij")
+    ax, ay, az = material.alpha_generic(beta, gamma)
+    push = np.where(np.sin(beta + gamma) > 1e-9, az * np.sin(gamma) + ax * np.cos(gamma), 0.0)
+    k = int(np.argmin(push))
+    if push.flat[k] < 0.0:
+        return float(push.flat[k]), float(beta.flat[k]), float(gamma.flat[k])
+    k = int(np.argmin(ay))
+    if ay.flat[k] < 0.0:
+        return float(ay.flat[k]), float(beta.flat[k]), 0.0
+    return None
+
+
+def describe_violation(violation: tuple[float, float, float]) -> str:
+    """The angles of a dissipation violation, for messages."""
+    work, beta, gamma = violation
+    return (
+        f"it would push a leading plate along its motion at beta = {math.degrees(beta):.0f} deg, "
+        f"gamma = {math.degrees(gamma):.0f} deg (alpha_z sin(gamma) + alpha_x cos(gamma) or "
+        f"alpha_y = {work:.3g} < 0); RFT media only resist motion (docs/design.md 2.9)"
+    )
+
+
 def _check_zeta(zeta: object, unit: str = "N/m^3") -> float:
     try:
         z = float(zeta)  # type: ignore[arg-type]
@@ -233,6 +307,7 @@ class Material:
             z = _check_zeta(zeta_n_per_cm3, "N/cm^3") * N_PER_CM3
         else:
             z = _check_zeta(zeta)
+        warn_if_unusual_zeta(z)
         return cls._from_fourier(
             LI_GENERIC, z, name or f"generic (zeta={z / N_PER_CM3:g} N/cm^3)", "Li 2013 generic"
         )
@@ -250,14 +325,23 @@ class Material:
 
     @classmethod
     def from_table(
-        cls, table: Mapping[str, float], *, unit: float = N_PER_CM3, name: str = "custom table"
+        cls,
+        table: Mapping[str, float],
+        *,
+        unit: float = N_PER_CM3,
+        name: str = "custom table",
+        strict: bool = True,
     ) -> Material:
         """A medium from its full (dimensional) Fourier coefficient table.
 
         Args:
           table: coefficients by name ('A00', 'A10', 'B11', 'B-11', 'C01', 'D10', ...), in `unit`.
           unit: the table's unit in N/m^3 (default N/cm^3, as Li 2013 publishes).
+          strict: False turns the refusal of a medium that would not resist every motion into a
+            MaterialWarning (for stand-in sets, e.g. tests of the kernel's algebra).
         The table is stored in generic form: zeta = alpha_z(0, pi/2) of the table, in N/m^3.
+        Raises ValueError if the medium would not resist every motion (dissipation_violation)
+        or its coefficients are out of proportion (GENERIC_COEFFICIENT_MAX).
         """
         u = _check_zeta(unit, "N/m^3 per table unit")
         coeffs = FourierCoefficients.from_mapping(table, source=name)
@@ -267,7 +351,30 @@ class Material:
                 f"{name}: alpha_z(beta=0, gamma=pi/2) = {az_ref:g} must be > 0 "
                 "(a horizontal plate pushed down must be resisted)"
             )
-        return cls._from_fourier(coeffs.scaled(1.0 / az_ref), az_ref * u, name, name)
+        material = cls._from_fourier(coeffs.scaled(1.0 / az_ref), az_ref * u, name, name)
+        material.check(name, strict)
+        warn_if_unusual_zeta(material.zeta, f"{name}: zeta = alpha_z(0, pi/2) x unit")
+        return material
+
+    def check(self, where: str, strict: bool = True) -> None:
+        """Raise ValueError, naming ``where``, if this Fourier-form medium's generic coefficients
+        are out of proportion or it would not resist every motion of a leading plate (the
+        latter only warns, MaterialWarning, if not strict)."""
+        values = np.concatenate([self.fourier.a, self.fourier.b, self.fourier.c, self.fourier.d])
+        worst = float(np.abs(values).max())
+        if not worst <= GENERIC_COEFFICIENT_MAX:
+            raise ValueError(
+                f"{where}: a generic-form coefficient has magnitude {worst:.3g}, above "
+                f"{GENERIC_COEFFICIENT_MAX:g}; generic coefficients are dimensionless and of order "
+                "1 (Li's set: 0.007-0.358): check the numbers and their unit"
+            )
+        violation = dissipation_violation(self)
+        if violation is None:
+            return
+        message = f"{where}: not a dissipative medium: {describe_violation(violation)}"
+        if strict:
+            raise ValueError(message)
+        warnings.warn(message, MaterialWarning, stacklevel=3)
 
     @classmethod
     def from_callables(
@@ -288,9 +395,11 @@ class Material:
           alpha_y: optional vectorized callable beta -> out-of-plane coefficient; default is the
             constant alpha_x(0, 0) (first-order 3D RFT, Treers et al. 2021).
         The callables are probed on a grid of angles now, so shape errors and non-finite values
-        are reported at construction rather than mid-simulation.
+        are reported at construction rather than mid-simulation; a model that would push a
+        leading plate along its motion somewhere draws a MaterialWarning.
         """
         z = _check_zeta(zeta)
+        warn_if_unusual_zeta(z)
         beta, gamma = _probe_grid()
         _check_callable(alpha_x, "alpha_x(beta, gamma)", (beta, gamma))
         _check_callable(alpha_z, "alpha_z(beta, gamma)", (beta, gamma))
@@ -299,7 +408,7 @@ class Material:
             ay0 = 0.0
         else:
             ay0 = float(np.asarray(alpha_x(np.zeros(1), np.zeros(1)), dtype=np.float64)[0])
-        return cls(
+        material = cls(
             name=name,
             zeta=z,
             alpha_x_fn=alpha_x,
@@ -308,6 +417,14 @@ class Material:
             alpha_y0=ay0,
             source="user callables",
         )
+        violation = dissipation_violation(material)
+        if violation is not None:  # callables may be stand-ins on purpose: warn, do not refuse
+            warnings.warn(
+                f"{name}: not a dissipative medium: {describe_violation(violation)}",
+                MaterialWarning,
+                stacklevel=2,
+            )
+        return material
 
     @classmethod
     def _from_fourier(cls, coeffs: FourierCoefficients, zeta: float, name: str, source: str):

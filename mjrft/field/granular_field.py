@@ -58,7 +58,7 @@ class GranularField:
 
     Args:
       model: compiled model whose ``<custom>`` describes the scene (``mjrft.field.scene``).
-      material: overrides the MJCF material if given.
+      material: overrides the MJCF material if given: a ``Material`` or a preset's name.
       n_triangles: overrides the triangle count of every primitive geom (MJCF ``prm`` and
         ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
       tolerance: instead of n_triangles, the relative RMS force error wanted per primitive geom
@@ -77,7 +77,7 @@ class GranularField:
     def __init__(
         self,
         model: mujoco.MjModel,
-        material: Material | None = None,
+        material: Material | str | None = None,
         *,
         n_triangles: int | None = None,
         tolerance: float | None = None,

@@ -27,13 +27,15 @@ Imports mujoco only to read the model; no state.
 from __future__ import annotations
 
 import dataclasses
+import math
+import warnings
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from mjrft.core import geometry
-from mjrft.core.material import PRESETS, FourierCoefficients, Material
+from mjrft.core.material import PRESETS, FourierCoefficients, Material, warn_if_unusual_zeta
 from mjrft.field.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 
 PREFIX = "mjrft:"
@@ -47,6 +49,7 @@ KEYS = {
         "triangles",
         "tolerance",
         "stick_reach",
+        "max_triangles",
     ),
     "tuple": ("intruders",),
 }
@@ -63,6 +66,20 @@ SUPPORTED_GEOM_TYPES = {
 
 class SceneError(ValueError):
     """The MJCF scene description is invalid; the message names the element at fault."""
+
+
+class SceneWarning(UserWarning):
+    """The MJCF scene is legal but almost surely not what was meant; the message says why."""
+
+
+#: A generic-form coefficient set whose alpha_z(0, pi/2) differs from 1 by more than this draws
+#: a warning (the form is normalised to 1; Li's set gives 1.000).
+GENERIC_NORM_TOLERANCE = 0.01
+#: Memory per triangle [bytes] while a geom is meshed and checked (measured: the mesh checks
+#: peak at 290 B per triangle under tracemalloc on a 327,680-face icosphere, plus the field's
+#: body-frame copies), and per triangle and MjData of the running field (element forces and
+#: scratch).
+BYTES_PER_TRIANGLE, BYTES_PER_TRIANGLE_PER_DATA = 500, 48
 
 
 @dataclass(frozen=True)
@@ -113,6 +130,7 @@ def _custom(model: mujoco.MjModel) -> dict[str, tuple[str, int]]:
         for i in range(n):
             name = mujoco.mj_id2name(model, objtype, i) or ""
             if not name.startswith(PREFIX):
+                _refuse_misspelt_prefix(kind, name)
                 continue
             key = name[len(PREFIX) :]
             if key not in KEYS[kind]:
@@ -120,6 +138,18 @@ def _custom(model: mujoco.MjModel) -> dict[str, tuple[str, int]]:
                 raise SceneError(f"unknown <{kind} name='{name}'> in <custom>; valid: {valid}")
             found[key] = (kind, i)
     return found
+
+
+def _refuse_misspelt_prefix(kind: str, name: str) -> None:
+    """SceneError for a name that is almost surely meant as an mjrft element: 'mjrft' in any
+    case, then ':', '_', '.', '-' or a space (MJRFT:region, mjrft_region, mjrft.low_speed)."""
+    head, sep, key = name[:5], name[5:6], name[6:]
+    if head.lower() == "mjrft" and sep in (":", "_", ".", "-", " ") and name[:6] != PREFIX:
+        hint = f"; did you mean '{PREFIX}{key}'?" if key in KEYS[kind] else ""
+        raise SceneError(
+            f"<{kind} name='{name}'> in <custom> looks like an mjrft element, but mjrft reads "
+            f"only names that start with '{PREFIX}' (lower case, a colon){hint}"
+        )
 
 
 def _numeric(model: mujoco.MjModel, idx: int) -> np.ndarray:
@@ -164,20 +194,50 @@ def material_from_model(model: mujoco.MjModel, custom: dict | None = None) -> Ma
     zeta = _numeric_field(model, custom, "zeta", (1,), "one number > 0, zeta in N/m^3")
     if zeta is None:
         return None
+    where = f"<numeric name='{PREFIX}zeta'>"
     if not zeta[0] > 0:
-        raise SceneError(f"<numeric name='{PREFIX}zeta'> = {zeta[0]} must be > 0 [N/m^3]")
+        raise SceneError(f"{where} = {zeta[0]} must be > 0 [N/m^3]")
+    try:
+        warn_if_unusual_zeta(float(zeta[0]), where)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
     coeffs = _numeric_field(
         model, custom, "coefficients", (9,), f"9 numbers: {' '.join(COEFFICIENT_ORDER)}"
     )
     if coeffs is None:
         return Material.generic(float(zeta[0]), name=f"mjcf generic (zeta={zeta[0]:g} N/m^3)")
+    return _coefficients_material(coeffs, float(zeta[0]))
+
+
+def _coefficients_material(coeffs: np.ndarray, zeta: float) -> Material:
+    """The medium of mjrft:coefficients (generic form) scaled by mjrft:zeta, checked."""
+    where = f"<numeric name='{PREFIX}coefficients'>"
     table = FourierCoefficients.from_mapping(dict(zip(COEFFICIENT_ORDER, coeffs, strict=True)))
-    return Material._from_fourier(table, float(zeta[0]), "mjcf coefficients", "MJCF <custom>")
+    az_ref = float(table.alpha_z(0.0, np.pi / 2))
+    if not az_ref > 0.0:
+        raise SceneError(
+            f"{where}: alpha_z(beta=0, gamma=pi/2) = {az_ref:g} must be > 0 (a horizontal plate "
+            "pushed down must be resisted); the generic form has it equal to 1"
+        )
+    material = Material._from_fourier(table, zeta, "mjcf coefficients", "MJCF <custom>")
+    try:
+        material.check(where)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    if abs(az_ref - 1.0) > GENERIC_NORM_TOLERANCE:
+        warnings.warn(
+            f"{where}: alpha_z(beta=0, gamma=pi/2) = {az_ref:g}, not 1: a generic-form set is "
+            f"normalised to 1, so the medium is {az_ref:g} x mjrft:zeta strong; for a table in "
+            "N/cm^3 use Material.from_table",
+            SceneWarning,
+            stacklevel=4,
+        )
+    return material
 
 
 def scene_from_model(
     model: mujoco.MjModel,
-    material: Material | None = None,
+    material: Material | str | None = None,
     *,
     n_triangles: int | None = None,
     tolerance: float | None = None,
@@ -202,6 +262,16 @@ def scene_from_model(
         )
     custom = _custom(model)
     mjcf_material = material_from_model(model, custom)
+    if isinstance(material, str):  # a preset's name, as the environments accept
+        try:
+            material = Material.preset(material)
+        except ValueError as exc:
+            raise SceneError(f"material={material!r}: {exc}") from None
+    elif material is not None and not isinstance(material, Material):
+        raise SceneError(
+            f"material must be a mjrft.Material or a preset name ({', '.join(sorted(PRESETS))}), "
+            f"got {type(material).__name__}"
+        )
     material = material or mjcf_material
     if material is None:
         raise SceneError(
@@ -218,7 +288,10 @@ def scene_from_model(
             f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
             "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
         )
-    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol)
+    cap = _numeric_field(model, custom, "max_triangles", (1,), "one integer >= 12")
+    cap = geometry.MAX_TRIANGLES if cap is None else int(cap[0])
+    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol, cap)
+    _warn_if_suspicious(model, intruders)
     if n_triangles is not None:
         intruders = tuple(
             i
@@ -294,12 +367,18 @@ def _low_speed(model, custom, mode: str | None, reach: float | None) -> LowSpeed
 
 
 def _intruders(
-    model: mujoco.MjModel, t: int, default_tri: int, default_tol: float | None
+    model: mujoco.MjModel, t: int, default_tri: int, default_tol: float | None, cap: int
 ) -> tuple[Intruder, ...]:
     adr, size = model.tuple_adr[t], model.tuple_size[t]
     tagged: dict[int, float] = {}
+    entry: dict[int, int] = {}  # geom -> the element that tagged it
     for k in range(adr, adr + size):
         objtype, objid, prm = model.tuple_objtype[k], model.tuple_objid[k], model.tuple_objprm[k]
+        if not math.isfinite(prm):
+            raise SceneError(
+                f"{PREFIX}intruders element {k - adr} has prm = {prm}; expected 0 (default), a "
+                "tolerance in (0, 1) or an integer triangle count"
+            )
         if objtype == mujoco.mjtObj.mjOBJ_GEOM:
             geoms = [int(objid)]
         elif objtype == mujoco.mjtObj.mjOBJ_BODY:
@@ -315,7 +394,14 @@ def _intruders(
                 f"'{mujoco.mjtObj(objtype).name[6:].lower()}'; use objtype='geom' or 'body'"
             )
         for g in geoms:
+            if g in entry:
+                raise SceneError(
+                    f"geom '{_name(model, mujoco.mjtObj.mjOBJ_GEOM, g)}' is tagged twice in "
+                    f"<tuple name='{PREFIX}intruders'> (elements {entry[g]} and {k - adr}); "
+                    "tag each geom once (a body element tags all its geoms)"
+                )
             tagged[g] = float(prm)
+            entry[g] = k - adr
     if not tagged:
         raise SceneError(f"<tuple name='{PREFIX}intruders'> is empty: tag at least one geom")
     out = []
@@ -346,6 +432,15 @@ def _intruders(
                 f"geom '{name}' is a mesh: it uses its own triangles, so prm must be 0 "
                 f"(got {prm:g})"
             )
+        count = int(model.mesh_facenum[model.geom_dataid[g]]) if kind == "mesh" else int(prm)
+        if count > cap:
+            raise SceneError(
+                f"geom '{name}' would have {count:,} triangles, above the cap of {cap:,} "
+                f"(<numeric name='{PREFIX}max_triangles'>): it would take about "
+                f"{count * BYTES_PER_TRIANGLE / 1e9:.1f} GB to check and mesh, and "
+                f"{count * BYTES_PER_TRIANGLE_PER_DATA / 1e6:.0f} MB per MjData; decimate the "
+                "mesh, or raise the cap if the memory is there"
+            )
         body = int(model.geom_bodyid[g])
         if body == 0:
             raise SceneError(f"geom '{name}' belongs to the world body, which cannot move")
@@ -361,6 +456,47 @@ def _intruders(
             )
         )
     return tuple(out)
+
+
+def _warn_if_suspicious(model: mujoco.MjModel, intruders: tuple[Intruder, ...]) -> None:
+    """SceneWarning for tagged geoms that are legal but almost surely a mistake: on a body
+    welded to the world (the force moves nothing), or colliding with the ground (contacts carry
+    the body and the medium's force reads near 0)."""
+    ground = [
+        h
+        for h in range(model.ngeom)
+        if int(model.geom_type[h])
+        in (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD))
+    ]
+    contacts = not model.opt.disableflags & int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    for intr in intruders:
+        g = intr.geom
+        if model.body_weldid[intr.body] == 0:
+            warnings.warn(
+                f"geom '{intr.name}' is tagged, but its body '{intr.body_name}' is welded to the "
+                "world (no joint between them): its RFT force moves nothing",
+                SceneWarning,
+                stacklevel=4,
+            )
+        hits = [
+            h
+            for h in ground
+            if contacts
+            and model.geom_bodyid[h] != intr.body
+            and (
+                model.geom_contype[g] & model.geom_conaffinity[h]
+                or model.geom_contype[h] & model.geom_conaffinity[g]
+            )
+        ]
+        if hits:
+            warnings.warn(
+                f"geom '{intr.name}' is tagged and also collides with "
+                f"'{_name(model, mujoco.mjtObj.mjOBJ_GEOM, hits[0])}' (contype/conaffinity): "
+                "contacts will carry the body and the medium's force will read near 0; set "
+                "contype and conaffinity to 0 on the intruder or on the ground (docs/mjcf.md)",
+                SceneWarning,
+                stacklevel=4,
+            )
 
 
 def geom_elements(model: mujoco.MjModel, intruder: Intruder):
