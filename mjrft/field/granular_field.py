@@ -18,8 +18,7 @@ A wrench added to ``qfrc_passive`` moves the bodies but is invisible to every lo
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
+import warnings
 from dataclasses import dataclass
 
 import mujoco
@@ -282,20 +281,14 @@ class GranularField:
         return ownership.user_part(data, self._states.find(data), self.body_ids)
 
     # ------------------------------------------------------------------ installed path
-    @contextlib.contextmanager
-    def installed(self) -> Iterator[GranularField]:
+    def installed(self) -> Installed:
         """Make RFT forces act inside every ``mj_step``/``mj_forward`` of this model.
 
-        Applies to every MjData of the model; other models (and model compilation) are not
-        affected. A user's own passive callback keeps running.
+        ``with field.installed(): ...``. Applies to every MjData of the model; other models
+        (and model compilation) are not affected. A user's own passive callback keeps running,
+        and one set while installed is chained. Entering and leaving are atomic against Ctrl-C.
         """
-        table = self._tables.address if self._native else 0
-        guard.install(self.model, self.apply_passive, table)
-        try:
-            yield self
-        finally:
-            guard.uninstall(self.model)
-            self._release_all()
+        return Installed(self)
 
     def apply_passive(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """The installed pass, from Python: runs in MuJoCo's passive callback for every pass the
@@ -325,3 +318,37 @@ class GranularField:
                 data.xfrc_applied[:] = ownership.user_part(data, st, self.body_ids)
             st.owned = False
             st.registered = False  # guard.uninstall dropped the model's MjData
+
+
+class Installed:
+    """The context of ``GranularField.installed()``.
+
+    Entering installs the field in MuJoCo's passive callback (atomically: a Ctrl-C during it
+    rolls it back and is raised after); leaving uninstalls it and gives every MjData its user
+    part of ``xfrc_applied`` back, with Ctrl-C held until both are done. If a previous exit of
+    this field was cut short anyway (an interrupt in the few bytecodes before that hold),
+    entering again finishes it first, with a RuntimeWarning.
+    """
+
+    def __init__(self, field: GranularField) -> None:
+        self.field = field
+
+    def __enter__(self) -> GranularField:
+        f = self.field
+        if guard.installed_handler(f.model) == f.apply_passive:
+            warnings.warn(
+                "the previous installed() of this field was interrupted on its way out and the "
+                "field kept acting since; uninstalling it now",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            self.__exit__(None, None, None)
+        guard.install(f.model, f.apply_passive, f._tables.address if f._native else 0)
+        return f
+
+    def __exit__(self, *exc: object) -> None:
+        with guard.DeferredInterrupt():
+            try:
+                guard.uninstall(self.field.model)
+            finally:
+                self.field._release_all()

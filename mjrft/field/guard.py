@@ -25,6 +25,7 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
+import signal
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -126,6 +127,83 @@ def _c_global() -> ctypes.c_void_p:
     return _state["c_global"]
 
 
+class DeferredInterrupt:
+    """Hold back Ctrl-C (SIGINT) over a critical section in the main thread, then raise it.
+
+    Installing or uninstalling a field changes several pieces of process state (MuJoCo's C
+    global, the binding's callable, the registries); a KeyboardInterrupt between two of them
+    would leave the process half-installed (every model compilation failing). Inside this
+    context SIGINT is only recorded; ``pending`` tells whether one arrived, and leaving the
+    context raises it, after the section completed or rolled back. Elsewhere than the main
+    thread Python delivers no signals, so nothing is changed there.
+    """
+
+    def __init__(self) -> None:
+        self.pending = False
+        self._previous = None
+
+    def __enter__(self) -> DeferredInterrupt:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._record)
+        return self
+
+    def _record(self, signum, frame) -> None:
+        self.pending = True
+
+    def __exit__(self, kind, value, traceback) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        if self.pending and kind is None:
+            raise KeyboardInterrupt
+
+
+def _trampoline() -> int:
+    """Address of the binding's C trampoline to Python callables (fixed for the process)."""
+    if "trampoline" not in _state:
+        previous = _original["get"]()
+        with DeferredInterrupt():
+            _original["set"](_dispatch)
+            _state["trampoline"] = _c_global().value
+            _original["set"](previous)
+    return _state["trampoline"]
+
+
+def _guard_address() -> int:
+    """Address of the native guard, compiled on first use (before any global is touched)."""
+    if "guard" not in _state:
+        _state["guard"] = _build_guard(_trampoline())
+    return _state["guard"].address
+
+
+def _route() -> None:
+    """Point MuJoCo's C global at the guard, or at the trampoline while a user callback is
+    chained (their callback runs for every model, so every model must reach Python)."""
+    user = _state.get("user_callback")
+    _c_global().value = _trampoline() if user is not None else _guard_address()
+
+
+def _set_mjcb_passive(callback) -> None:
+    """``mujoco.set_mjcb_passive`` while a field is installed: chains the callback after the
+    fields (it runs for every model) instead of silently switching the fields off."""
+    if callback is not None and not callable(callback):
+        raise TypeError(f"mjcb_passive must be callable or None, got {type(callback).__name__}")
+    if isinstance(callback, ctypes._CFuncPtr):
+        raise RuntimeError(
+            "a native (ctypes) mjcb_passive cannot be chained with an installed granular field"
+        )
+    with _lock, DeferredInterrupt():
+        _state["user_callback"] = callback
+        _route()
+
+
+def _get_mjcb_passive():
+    """``mujoco.get_mjcb_passive`` while a field is installed: the chained user callback."""
+    return _state.get("user_callback")
+
+
+_original = {"set": mujoco.set_mjcb_passive, "get": mujoco.get_mjcb_passive}
+
+
 def install(
     model: mujoco.MjModel, handler: Callable[[Any, Any], None], native_table: int = 0
 ) -> None:
@@ -133,56 +211,81 @@ def install(
 
     native_table: address of the field's static record (``mjrft.field.tables``; 0: Python
     only). With it, registered MjData are handled natively; handler sees the others and any
-    reported problem.
+    reported problem. Atomic against Ctrl-C: an interrupt during it rolls it back and is raised
+    after. While any field is installed, ``mujoco.set_mjcb_passive`` chains a user callback
+    after the fields and ``mujoco.get_mjcb_passive`` returns it.
     """
-    with _lock:
-        key = model._address
-        if key in _handlers:
-            raise RuntimeError("a granular field is already installed for this MjModel")
+    key = model._address
+    if key in _handlers:
+        raise RuntimeError("a granular field is already installed for this MjModel")
+    _guard_address()  # compiles the guard (seconds) while no state is changed yet
+    with _lock, DeferredInterrupt() as interrupt:
         if len(_handlers) >= _MAX_MODELS:
             raise RuntimeError(f"at most {_MAX_MODELS} models can have installed fields at once")
         if not _handlers:
-            user = mujoco.get_mjcb_passive()
-            if user is not None and not callable(user):
-                raise RuntimeError("unsupported mjcb_passive already installed")
-            if isinstance(user, ctypes._CFuncPtr):
-                raise RuntimeError(
-                    "a native (ctypes) mjcb_passive is installed; mjrft cannot chain it. "
-                    "Remove it with mujoco.set_mjcb_passive(None) before installing a field"
-                )
-            _state["user_callback"] = user
-            # Registers _dispatch with the binding and puts its trampoline in the C global...
-            mujoco.set_mjcb_passive(_dispatch)
-            if user is None:
-                # ...which the native guard then replaces, keeping _dispatch as the binding's
-                # callable. With a user callback present every model must still reach Python
-                # (their callback runs for all models), so the trampoline stays; compilation
-                # was already unavailable to them while their callback is installed.
-                glob_ptr = _c_global()
-                tramp = glob_ptr.value
-                if "guard" not in _state or _state["trampoline"] != tramp:
-                    _state["guard"] = _build_guard(tramp)
-                    _state["trampoline"] = tramp
-                glob_ptr.value = _state["guard"].address
+            _take_global()
         _handlers[key] = handler
         _tables[key] = int(native_table)
         _sync_registry()
+        if interrupt.pending:  # roll back, then the interrupt is raised on leaving
+            _uninstall(key)
+
+
+def _take_global() -> None:
+    """The first installed field takes MuJoCo's passive callback, keeping the user's chained."""
+    user = _original["get"]()
+    if user is not None and not callable(user):
+        raise RuntimeError("unsupported mjcb_passive already installed")
+    if isinstance(user, ctypes._CFuncPtr):
+        raise RuntimeError(
+            "a native (ctypes) mjcb_passive is installed; mjrft cannot chain it. "
+            "Remove it with mujoco.set_mjcb_passive(None) before installing a field"
+        )
+    _state["user_callback"] = user
+    _original["set"](_dispatch)  # the binding's callable; the C global then goes to the guard
+    _route()
+    mujoco.set_mjcb_passive, mujoco.get_mjcb_passive = _set_mjcb_passive, _get_mjcb_passive
+
+
+def _give_back_global() -> None:
+    """The last field gives MuJoCo's passive callback back (the user's, if one is chained).
+
+    Raises RuntimeError if the callback was replaced behind the fields' back (through a
+    reference to ``mujoco.set_mjcb_passive`` taken before installing, or ctypes): the fields
+    then stopped acting at some step without a word, and their results are not to be trusted.
+    """
+    replaced = _original["get"]() is not _dispatch or _c_global().value not in (
+        _state.get("trampoline"),
+        _state["guard"].address if "guard" in _state else None,
+    )
+    mujoco.set_mjcb_passive, mujoco.get_mjcb_passive = _original["set"], _original["get"]
+    _original["set"](_state.pop("user_callback", None))
+    if replaced:
+        raise RuntimeError(
+            "MuJoCo's passive callback was replaced while a granular field was installed (a "
+            "reference to mujoco.set_mjcb_passive taken before installing, or ctypes): the field "
+            "stopped acting then, so the run's granular forces are missing from that step on; "
+            "set callbacks through mujoco.set_mjcb_passive while installed, which chains them"
+        )
 
 
 def uninstall(model: mujoco.MjModel) -> None:
-    """Stop routing `model`; restore the previous passive callback when no field remains."""
-    with _lock:
-        key = model._address
-        if _handlers.pop(key, None) is None:
-            return
-        _tables.pop(key, None)
-        _sync_registry()
-        for addr in [a for a, (mkey, _) in _data_entries.items() if mkey == key]:
-            _data_entries.pop(addr)
-        _sync_datas()
-        if not _handlers:
-            # Restores both the binding's callable and the C global (trampoline or null).
-            mujoco.set_mjcb_passive(_state.pop("user_callback", None))
+    """Stop routing `model`; restore the previous passive callback when no field remains.
+    Atomic against Ctrl-C; a no-op if the model has no installed field."""
+    with _lock, DeferredInterrupt():
+        _uninstall(model._address)
+
+
+def _uninstall(key: int) -> None:
+    if _handlers.pop(key, None) is None:
+        return
+    _tables.pop(key, None)
+    _sync_registry()
+    for addr in [a for a, (mkey, _) in _data_entries.items() if mkey == key]:
+        _data_entries.pop(addr)
+    _sync_datas()
+    if not _handlers:
+        _give_back_global()
 
 
 def _sync_registry() -> None:
@@ -216,6 +319,11 @@ def _sync_datas() -> None:
     for j, (daddr, (mkey, entry)) in enumerate(items):
         _datas[1 + 3 * j : 4 + 3 * j] = (daddr, mkey, entry)
     _datas[0] = len(items)
+
+
+def installed_handler(model: mujoco.MjModel) -> Callable[[Any, Any], None] | None:
+    """The handler installed for `model`, or None."""
+    return _handlers.get(model._address)
 
 
 def installed_models() -> int:
