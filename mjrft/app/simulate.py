@@ -6,6 +6,8 @@ Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
 from __future__ import annotations
 
 import math
+import os
+import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -53,19 +55,126 @@ def configure(model: mujoco.MjModel, timestep: float | None, integrator: str | N
         model.opt.integrator = INTEGRATORS[key]
 
 
+class RunDiverged(RuntimeError):
+    """MuJoCo found the state diverging (NaN, Inf or huge qpos, qvel or qacc) during a run.
+
+    MuJoCo then resets the state to the model's defaults and goes on (auto-reset), so a run
+    that went on would record a different simulation from that step on; ``run`` stops instead.
+    Attributes: time [s] of the step that diverged, step (its index), warning (MuJoCo's text).
+    """
+
+    def __init__(self, time: float, step: int, warning: str, timestep: float) -> None:
+        super().__init__(
+            f"the simulation diverged at t = {time:.6g} s (step {step}): MuJoCo warned '{warning}' "
+            f"and reset the state, so the run stops here (rows up to it are kept); a smaller "
+            f"timestep than {timestep:g} s usually cures it"
+        )
+        self.time, self.step, self.warning = time, step, warning
+
+
+# MuJoCo's warnings of a diverging state, after which mj_step resets the data (auto-reset).
+_DIVERGING = {
+    int(mujoco.mjtWarning.mjWARN_BADQPOS): "Nan, Inf or huge value in QPOS at DOF {}",
+    int(mujoco.mjtWarning.mjWARN_BADQVEL): "Nan, Inf or huge value in QVEL at DOF {}",
+    int(mujoco.mjtWarning.mjWARN_BADQACC): "Nan, Inf or huge value in QACC at DOF {}",
+}
+
+
+class CsvSink:
+    """A CSV file written as a run goes: the header at once, rows buffered and flushed at least
+    every ``flush_s`` seconds of wall time and at close, in memory that does not grow with the
+    run. Values are written exactly (shortest round-trip repr). Rows on disk survive a crash
+    or SIGKILL, up to the last flush."""
+
+    def __init__(self, path: str | Path, columns: list[str], flush_s: float = 1.0) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, "w", newline="")
+        self._fh.write(",".join(columns) + "\n")
+        self._fh.flush()
+        self.flush_s = flush_s
+        self._pending: list[np.ndarray] = []
+        self._last_flush = _time.monotonic()
+        self.n_rows = 0
+        self.last_row: np.ndarray | None = None
+
+    def append(self, row: np.ndarray) -> None:
+        """Add one row (it is written within ``flush_s`` seconds)."""
+        self._pending.append(row)
+        self.n_rows += 1
+        self.last_row = row
+        if _time.monotonic() - self._last_flush >= self.flush_s or len(self._pending) >= 4096:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the buffered rows and hand them to the operating system."""
+        if self._pending:
+            block = np.vstack(self._pending).tolist()
+            self._pending = []
+            self._fh.write("".join(",".join(map(repr, r)) + "\n" for r in block))
+        self._fh.flush()
+        self._last_flush = _time.monotonic()
+
+    def close(self) -> None:
+        """Flush and close (idempotent)."""
+        if not self._fh.closed:
+            self.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+
+
 @dataclass
 class Recording:
     """Time series of a run, grown step by step; columns in SI, world frame.
 
     Attributes:
       columns: ordered column names (with units), e.g. 'time_s', '<body>_force_z_N'.
-      rows: recorded rows, one per recorded step.
+      rows: recorded rows, one per recorded step (kept in memory unless a sink streams them).
       body_names: intruding bodies, in column order.
+      sink: a CsvSink the rows are streamed to instead (then ``rows`` stays empty).
     """
 
     columns: list[str]
     body_names: list[str]
     rows: list[np.ndarray] = field(default_factory=list)
+    sink: CsvSink | None = None
+
+    def append(self, row: np.ndarray) -> None:
+        """Record one row."""
+        if self.sink is not None:
+            self.sink.append(row)
+        else:
+            self.rows.append(row)
+
+    @property
+    def n_rows(self) -> int:
+        """Rows recorded so far."""
+        return self.sink.n_rows if self.sink is not None else len(self.rows)
+
+    @property
+    def last_row(self) -> np.ndarray | None:
+        """The most recent row, or None."""
+        if self.sink is not None:
+            return self.sink.last_row
+        return self.rows[-1] if self.rows else None
+
+    @classmethod
+    def from_csv(
+        cls, path: str | Path, body_names: list[str], max_rows: int = 200_000
+    ) -> Recording:
+        """A recording read back from a CSV written by CsvSink, every k-th row (and the last)
+        so that at most ``max_rows`` are held: enough for plots, bounded for any run length."""
+        with open(path) as fh:
+            columns = fh.readline().strip().split(",")
+            n = sum(1 for _ in fh)
+        k = max(1, -(-n // max_rows))
+        rows = []
+        with open(path) as fh:
+            fh.readline()
+            for i, line in enumerate(fh):
+                if i % k == 0 or i == n - 1:
+                    rows.append(np.array(line.split(","), dtype=np.float64))
+        return cls(columns, body_names, rows)
 
     def array(self) -> np.ndarray:
         """(n_rows, n_columns) array of everything recorded so far."""
@@ -124,6 +233,17 @@ def record_row(
     return np.concatenate(parts)
 
 
+def _diverging_count(warnings: np.ndarray) -> int:
+    return sum(int(warnings[i]) for i in _DIVERGING)
+
+
+def _divergence(data: mujoco.MjData, step: int, time: float, timestep: float) -> RunDiverged:
+    """The RunDiverged of the step that made MuJoCo warn (the last diverging warning)."""
+    latest = max(_DIVERGING, key=lambda i: (int(data.warning[i].number) > 0, i))
+    text = _DIVERGING[latest].format(int(data.warning[latest].lastinfo))
+    return RunDiverged(time, step, text, timestep)
+
+
 def run(
     model: mujoco.MjModel,
     duration: float,
@@ -143,7 +263,8 @@ def run(
       fld: the field (built from the model if None).
       record_every: record one row every this many steps (the initial state is always recorded).
       progress: called with the fraction done, about 100 times over the run.
-      recording: an existing Recording to append to (it keeps what was recorded if this raises).
+      recording: an existing Recording to append to (it keeps what was recorded if this raises;
+        give it a CsvSink to stream the rows to a file instead of memory).
       observer: called as ``observer(step, time, data)`` every ``observe_every`` steps and at the
         final state, where data's derived quantities (kinematics, ``cvel``, sensors) describe the
         state after ``step`` steps, at MuJoCo time ``time`` [s] (for Euler/implicit: right after
@@ -152,6 +273,9 @@ def run(
       observe_every: observer period in steps (>= 1).
     Returns:
       (final MjData, Recording).
+    Raises:
+      RunDiverged if MuJoCo warns of a diverging state (and resets it) in a step: the rows
+      before that step are recorded, none after.
     """
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a finite number > 0 s, got {duration}")
@@ -170,7 +294,10 @@ def run(
     # wrench at the pre-step state, so that state is recorded after the step at no extra cost.
     # RK4 leaves its last stage there, so it needs a forward pass at the recorded state.
     rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    warnings = data.warning.number  # a live view: MuJoCo counts each warning here
+    diverged = _diverging_count(warnings)
     with fld.installed():
+        wrench = fld.wrench_of(data)  # a live view of this MjData's last pass
         for i in range(n_steps):
             record = i % record_every == 0
             observe = observer is not None and i % observe_every == 0
@@ -178,18 +305,20 @@ def run(
             if (record or observe) and rk4:
                 mujoco.mj_forward(model, data)
                 if record:
-                    rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+                    rec.append(record_row(model, data, fld, wrench))
                 if observe:
                     observer(i, t_prev, data)
             mujoco.mj_step(model, data)
+            if _diverging_count(warnings) != diverged:
+                raise _divergence(data, i, t_prev, model.opt.timestep)
             if record and not rk4:
-                rec.rows.append(record_row(model, data, fld, fld.last_wrench, time=t_prev))
+                rec.append(record_row(model, data, fld, wrench, time=t_prev))
             if observe and not rk4:
                 observer(i, t_prev, data)
             if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
                 progress((i + 1) / n_steps)
         mujoco.mj_forward(model, data)
-        rec.rows.append(record_row(model, data, fld, fld.last_wrench))
+        rec.append(record_row(model, data, fld, wrench))
         if observer is not None:
             observer(n_steps, data.time, data)
     return data, rec
