@@ -238,10 +238,19 @@ def treat(
         return np.concatenate([w[:3] / mass, np.linalg.solve(inertia, w[3:])])
 
     v_free = twist + dt * m_inv(other)
+    # The explicit step with the pure model would add energy (a force turning the motion);
+    # its balance's terms cancel near rest, so rounding counts as zero (ROUNDING).
+    end = twist + dt * m_inv(other + pure)
+    fc = other[:3] if semi_implicit else np.zeros(3)
+    size = float(np.abs(pure) @ (np.abs(twist) + np.abs(end)))
+    size += dt * float(np.abs(fc) @ (np.abs(fc) + np.abs(pure[:3]))) / mass
+    gains = step_work(pure, twist, end, other, mass, dt, semi_implicit) > ROUNDING * size
     if keeps_sense(pure, twist, mass, inertia, other, dt, reach):
-        if not (implicit and stiff(pure, twist, mass, inertia, dt, reach)):
+        if not (implicit and stiff(pure, twist, mass, inertia, dt, reach)) and not gains:
             return pure.copy(), PURE
-        f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt, semi_implicit)
+        f = None
+        if implicit:
+            f = implicit_wrench(pure, wrench_at, twist, mass, inertia, other, dt, semi_implicit)
         if f is not None:
             return f, IMPLICIT
         # Implicitly the motion would reverse within the step (or gain work): step 3 decides.
@@ -255,7 +264,7 @@ def treat(
             end = v_free + dt * m_inv(r)
             if step_work(r, twist, end, other, mass, dt, semi_implicit) <= 0.0:
                 return r, SLIP
-            if keeps_sense(pure, twist, mass, inertia, other, dt, 1.0):
+            if keeps_sense(pure, twist, mass, inertia, other, dt, 1.0) and not gains:
                 return pure.copy(), PURE
     stick = np.concatenate([-mass * v_free[:3], -(inertia @ v_free[3:])]) / dt
     return stick * stick_fraction(stick, twist, other, mass, n2, dt, semi_implicit), STICK

@@ -18,7 +18,9 @@ known wrenches (gravity, the user's ``xfrc_applied``, the gyroscopic term):
 2. If the exact force W(xi) keeps the motion's sense over the step,
    ``<xi + reach (xi_free - xi + dt M^-1 W(xi)), xi>_M > 0``, the body keeps moving. If it is
    also fast, ``reach dt |M^-1 W(xi)|_M < |xi|_M`` (the medium alone could not change its twist
-   by its whole size within ``reach`` steps), it feels the pure model, bit for bit. Otherwise
+   by its whole size within ``reach`` steps), it feels the pure model, bit for bit, unless the
+   explicit step with it would add energy (a force that turns the motion within the step;
+   :func:`adds_no_energy`), which is treated as a slow body is. Otherwise
    it is slow and moving, where RFT is stiff across the motion: W depends on the direction
    only, so a tilt or sideways drift of size e changes W by ~|W| e / |xi|, and an explicit
    step of such a mode overshoots and grows at the step frequency (an upright ellipsoid
@@ -410,21 +412,44 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     if sq + reach * dxi > 0.0:
         # Stiff across the motion: (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M (module docstring, 2).
         wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
-        if (reach * dt) ** 2 * wn2 < sq or not m.jacobian_step > 0.0:
+        fast = (reach * dt) ** 2 * wn2 < sq
+        if (fast or not m.jacobian_step > 0.0) and adds_no_energy(w, body, dt, semi):
             return PURE
-        if implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
+        if m.jacobian_step > 0.0 and implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
             return IMPLICIT
         # Implicitly the motion would reverse within the step (or gain work): decide below.
     return stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, sq + dxi > 0.0)
 
 
 @numba.njit(**_JIT)
+def adds_no_energy(w, body, dt, semi):
+    """True if the explicit step with the medium's wrench w (6,) adds no mechanical energy
+    (:func:`step_work` <= rounding). A dissipative force can still add energy over a step when
+    it turns the motion within it: w . xi < 0 at the start, but the end twist has swung round
+    so far that the mean of the two gains (a sharp-edged body spinning into the medium: up to
+    12 % of its energy in one step, benchmarks/energy.py). body: (twist, other, mass, iw, ii)."""
+    twist, other, mass, _, ii = body
+    end = np.empty(6)
+    ang = dt * (ii @ (other[3:] + w[3:]))
+    size = 0.0
+    for c in range(3):
+        end[c] = twist[c] + dt * (other[c] + w[c]) / mass
+        end[3 + c] = twist[3 + c] + ang[c]
+    for c in range(6):
+        size += abs(w[c]) * (abs(twist[c]) + abs(end[c]))
+    if semi:
+        for c in range(3):
+            size += dt * abs(other[c]) * (abs(other[c]) + abs(w[c])) / mass
+    return step_work(w, twist, end, other, mass, dt, semi) <= ROUNDING * size
+
+
+@numba.njit(**_JIT)
 def stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, keeps):
     """Step 3 of the treatment (module docstring): slip on R = W(xi_free) if it cannot stop the
     free motion within the step and adds no energy; else the pure model w if the motion keeps
-    its sense within this step (``keeps``); else stick. Returns the decision; sets w (6,).
-    body: (twist, other, mass, iw, ii) as in :func:`treat_body`; v_free, om_free (3,): the free
-    motion's end twist."""
+    its sense within this step (``keeps``) and w adds no energy; else stick. Returns the
+    decision; sets w (6,). body: (twist, other, mass, iw, ii) as in :func:`treat_body`;
+    v_free, om_free (3,): the free motion's end twist."""
     twist, other, mass, iw, ii = body
     n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
     if n2 > 0.0:
@@ -442,7 +467,7 @@ def stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, keeps):
                 for c in range(6):
                     w[c] = rw[c]
                 return SLIP
-            if keeps:
+            if keeps and adds_no_energy(w, body, dt, semi):
                 return PURE
     iomf = iw @ om_free
     for c in range(3):
