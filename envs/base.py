@@ -56,6 +56,32 @@ class GranularEnvironment(control.Environment):
         """Release the granular field (and MuJoCo data); the environment is unusable after."""
         if hasattr(self._physics, "_data"):
             self._physics.free()
+        self._closed = True
+
+    def _check_open(self, what: str) -> None:
+        if getattr(self, "_closed", False):
+            raise RuntimeError(f"{what}() on a closed environment: load a new one (envs.load)")
+
+    def reset(self):
+        """Start an episode (dm_control's reset); RuntimeError after close()."""
+        self._check_open("reset")
+        return super().reset()
+
+    def step(self, action):
+        """One control step (dm_control's step): the action must match ``action_spec()``'s
+        shape; ValueError naming the expected and given shapes otherwise, RuntimeError after
+        close()."""
+        self._check_open("step")
+        spec = self.action_spec()
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != spec.shape:
+            raise ValueError(
+                f"action has shape {a.shape}, expected {spec.shape} "
+                f"({spec.name or 'action_spec()'})"
+            )
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"action {a.tolist()} is not finite")
+        return super().step(a)
 
 
 def make_environment(

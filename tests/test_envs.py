@@ -435,3 +435,16 @@ def test_gymnasium_wrapper():
             assert not terminated and truncated == (i == 4)
     finally:
         env.close()
+
+
+def test_bad_actions_and_a_closed_environment_are_named():
+    env = make("hexapod_sand", time_limit=0.1)
+    env.reset()
+    with pytest.raises(ValueError, match=r"shape \(1,\), expected \(2,\) \(frequency,offset\)"):
+        env.step([1.0])
+    with pytest.raises(ValueError, match="not finite"):
+        env.step([1.0, float("nan")])
+    env.close()
+    for call in (env.reset, lambda: env.step([1.0, 0.0])):
+        with pytest.raises(RuntimeError, match="closed environment"):
+            call()
