@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -160,18 +162,65 @@ def _recorder(args: argparse.Namespace, model, fld):
     )
 
 
+#: Files `mjrft run` writes into --out (besides the optional --rrd).
+RUN_CSV = "timeseries.csv"
+RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
+#: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
+EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that the run finishes its files as on Ctrl-C."""
+
+
+def _check_outputs(args: argparse.Namespace) -> Path:
+    """Refuse, before the first step, outputs that could not be written or would clobber each
+    other or an existing recording; returns the output folder (created)."""
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} is a file, not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create --out folder {str(out)!r}: {exc.strerror}") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ValueError(f"--out folder {str(out)!r} is not writable")
+    if args.rrd:
+        rrd = Path(args.rrd)
+        ours = {(out / name).resolve() for name in (RUN_CSV, *RUN_PLOTS)}
+        if rrd.resolve() in ours:
+            raise ValueError(f"--rrd {str(rrd)!r} would overwrite the run's own {rrd.name}")
+        if rrd.exists() and not args.overwrite:
+            raise ValueError(
+                f"--rrd {str(rrd)!r} exists; pass --overwrite to replace it, or choose another file"
+            )
+        parent = rrd.resolve().parent
+        if parent.exists() and not os.access(parent, os.W_OK | os.X_OK):
+            raise ValueError(f"--rrd folder {str(parent)!r} is not writable")
+    return out
+
+
+def _on_sigterm(signum, frame) -> None:
+    raise Terminated
+
+
 def _run(args: argparse.Namespace) -> int:
     from mjrft.app import simulate
     from mjrft.field.granular_field import GranularField
 
+    out = _check_outputs(args)
     model = simulate.load_model(args.model)
     simulate.configure(model, args.timestep, args.integrator)
     fld = GranularField(model, low_speed=args.low_speed, stick_reach=args.stick_reach)
-    rec = simulate.new_recording(model, fld)
-    out = Path(args.out)
+    columns = simulate.new_recording(model, fld).columns
+    # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
+    # crash or SIGKILL loses at most the last second.
+    sink = simulate.CsvSink(out / RUN_CSV, columns)
+    rec = simulate.Recording(columns, [be.name for be in fld.bodies], sink=sink)
     recorder = _recorder(args, model, fld)
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     t0 = time.perf_counter()
-    status = "completed"
+    status, code = "completed", 0
     try:
         simulate.run(
             model,
@@ -183,38 +232,61 @@ def _run(args: argparse.Namespace) -> int:
             observer=recorder,
             observe_every=recorder.every if recorder is not None else 1,
         )
+    except simulate.RunDiverged as exc:
+        status, code = "diverged", EXIT_DIVERGED
+        print(f"mjrft run: {exc}", file=sys.stderr)
+    except Terminated:
+        status, code = "terminated", EXIT_TERMINATED
     except KeyboardInterrupt:
-        status = "interrupted"
+        status, code = "interrupted", EXIT_INTERRUPTED
     except Exception:
         status = "failed"
         raise
     finally:
-        # Whatever was computed is written, even when the run fails or is interrupted.
-        try:
+        # Whatever was computed is written, even when the run fails or is interrupted; a second
+        # Ctrl-C or a SIGTERM waits until the CSV and the recording are complete.
+        with DeferredSignals():
+            sink.close()
             if recorder is not None:
                 recorder.close()  # completes the .rrd file
-        finally:
-            _write_run_results(args, model, fld, rec, recorder, out, status, t0)
-    return 0 if status == "completed" else 130
+        signal.signal(signal.SIGTERM, previous)
+        _write_run_results(args, model, fld, rec, recorder, out, status, t0)
+    return code
+
+
+class DeferredSignals:
+    """Hold SIGINT and SIGTERM over a block (files being completed), then act on them."""
+
+    def __enter__(self) -> DeferredSignals:
+        self.pending: list[int] = []
+        self._previous = {
+            sig: signal.signal(sig, lambda signum, frame: self.pending.append(signum))
+            for sig in (signal.SIGINT, signal.SIGTERM)
+        }
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        if self.pending and exc[0] is None:
+            raise Terminated if signal.SIGTERM in self.pending else KeyboardInterrupt
 
 
 def _write_run_results(args, model, fld, rec, recorder, out: Path, status: str, t0: float) -> None:
-    """CSV, plots and the one-line summary of `mjrft run` (also after a failure or Ctrl-C)."""
-    from mjrft.app import report
+    """Plots from the CSV and the one-line summary of `mjrft run` (also after a failure)."""
+    from mjrft.app import report, simulate
 
-    if not rec.rows:
+    if rec.n_rows == 0:
         return
-    csv_path = report.write_csv(
-        out / "timeseries.csv", dict(zip(rec.columns, rec.array().T, strict=True))
-    )
-    pngs = report.plot_run(rec, fld.surface_z, out) if rec.body_names else []
     wall = time.perf_counter() - t0
-    t_end = rec.rows[-1][0]
+    t_end = float(rec.last_row[0])
+    plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
+    pngs = report.plot_run(plots, fld.surface_z, out) if rec.body_names else []
     print(
         f"mjrft run {Path(args.model).name}: {status} at t = {t_end:.4g} s, "
-        f"{len(rec.rows)} rows, {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
+        f"{rec.n_rows} rows, {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
         f"{_integrator_name(model)}, {wall:.1f} s wall ({t_end / max(wall, 1e-9):.2f}x "
-        f"real time); wrote {csv_path} and {len(pngs)} plots"
+        f"real time); wrote {rec.sink.path} and {len(pngs)} plots"
     )
     if recorder is not None and recorder.path is not None and recorder.path.exists():
         size_mb = recorder.path.stat().st_size / 1e6
@@ -302,8 +374,10 @@ def _add_run(sub) -> None:
             "body: CoM position and linear velocity, RFT force and torque about the CoM, all in "
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
             "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
-            "--rrd a rerun recording. Results are written even if the run fails or is "
-            "interrupted with Ctrl-C."
+            "--rrd a rerun recording. The CSV is written as the run goes (flushed every second); "
+            "on Ctrl-C or SIGTERM the run stops and finishes its CSV, recording and plots. Exit "
+            "codes: 0 completed, 2 bad input, 3 the simulation diverged (MuJoCo reset its state; "
+            "the rows before are kept), 130 interrupted, 143 terminated."
         ),
     )
     r.add_argument("model", metavar="MODEL.xml", help="MJCF model file")
@@ -345,6 +419,11 @@ def _add_run(sub) -> None:
         default=1,
         metavar="K",
         help="write one CSV row every K steps (default: 1, every step)",
+    )
+    r.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="let --rrd replace an existing file (refused otherwise)",
     )
     _add_recording_options(r)
     r.set_defaults(func=_run)
