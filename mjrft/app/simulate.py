@@ -159,9 +159,7 @@ class Recording:
         return self.rows[-1] if self.rows else None
 
     @classmethod
-    def from_csv(
-        cls, path: str | Path, body_names: list[str], max_rows: int = 200_000
-    ) -> Recording:
+    def from_csv(cls, path: str | Path, body_names: list[str], max_rows: int = 20_000) -> Recording:
         """A recording read back from a CSV written by CsvSink, every k-th row (and the last)
         so that at most ``max_rows`` are held: enough for plots, bounded for any run length."""
         with open(path) as fh:
