@@ -262,6 +262,8 @@ def test_no_nan_for_extreme_finite_inputs():
         ({"vel": np.array([[0, 0, 1.0], [0, np.nan, 0], [1, 0, 0]])}, "vel of element 1 .*finite"),
         ({"pos": np.array([[0, 0, np.inf]] * 3)}, "pos of element 0 .*finite"),
         ({"surface_z": np.nan}, "surface_z"),
+        ({"area": np.array([1.0, 1.0, np.nan])}, "area of element 2 .*finite"),
+        ({"normal": np.array([[0, 0, 1.0], [0, 0, 1.0], [0, -np.inf, 0]])}, "normal of element 2"),
     ],
 )
 def test_bad_input_raises(kwargs, match):
@@ -276,6 +278,23 @@ def test_bad_input_raises(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         element_forces(**args)
+
+
+def test_element_force_does_not_depend_on_the_other_elements():
+    # Unit normals skip normalisation only where every normal of the call is unit; a unit
+    # normal must give the same bits whether or not other normals in the call needed it.
+    rng = np.random.default_rng(7)
+    n = rng.normal(size=(200, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    pos, area, vel = rng.normal(scale=0.01, size=(200, 3)) - [0, 0, 0.02], np.ones(200), n * 0.1
+    alone = element_forces(pos, n, area, vel, GLASS)
+    mixed = n.copy()
+    mixed[::7] *= 3.0  # a few normals of other lengths
+    together = element_forces(pos, mixed, area, vel, GLASS)
+    unit = np.ones(200, bool)
+    unit[::7] = False
+    np.testing.assert_array_equal(together[unit], alone[unit])
+    np.testing.assert_allclose(together[~unit], alone[~unit], rtol=1e-14, atol=1e-16)
 
 
 def test_authors_stand_in_alpha_functions_plug_in():

@@ -1,7 +1,9 @@
 """Rigid-body RFT: element sets in a body frame + pose + twist -> force and moment (world frame).
 
 This generalises what the authors' MATLAB ``rft_3D_body`` does: any element set, any pose, any
-point about which moments are taken, and whole prescribed trajectories at once.
+point about which moments are taken, and whole prescribed trajectories at once. Fourier-form
+media run on the compiled kernel (one thread, no BLAS, whatever the machine's load); media
+given as Python callables on the NumPy evaluation.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mjrft.core import kernel
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.rft import element_forces
@@ -121,9 +124,28 @@ def body_wrench(
     lin_vel = _vec("lin_vel", lin_vel, (3,))
     ang_vel = _vec("ang_vel", ang_vel, (3,))
     c = position if point is None else _vec("point", point, (3,))
+    if material.compiled:
+        w = _compiled_trajectory(
+            elements, position[None], rotation[None], lin_vel[None], ang_vel[None], c[None],
+            material, surface_z,
+        )  # fmt: skip
+        return Wrench(w[0, :3], w[0, 3:])
     p, n, v = world_elements(elements, position, rotation, lin_vel, ang_vel)
     f = element_forces(p, n, elements.areas, v, material, surface_z)
     return Wrench(f.sum(axis=0), np.cross(p - c, f).sum(axis=0))
+
+
+def _compiled_trajectory(elements, positions, rotations, lin_vels, ang_vels, points, material,
+                         surface_z) -> np.ndarray:  # fmt: skip
+    """(T, 6) wrenches from the compiled kernel (one thread, no BLAS); inputs checked."""
+    c = np.ascontiguousarray
+    out = np.empty((len(positions), 6))
+    kernel.trajectory(
+        c(elements.centroids), c(elements.normals), c(elements.areas),
+        material.kernel_coefficients, material.alpha_y0, material.zeta, float(surface_z),
+        c(rotations), c(positions), c(lin_vels), c(ang_vels), c(points), out,
+    )  # fmt: skip
+    return out
 
 
 def trajectory_wrenches(
@@ -160,6 +182,13 @@ def trajectory_wrenches(
     lin_vels = _vec("lin_vels", lin_vels, (t, 3))
     ang_vels = _vec("ang_vels", ang_vels, (t, 3))
     points = positions if points is None else _vec("points", points, (t, 3))
+    if not np.isfinite(float(surface_z)):
+        raise ValueError(f"surface_z must be finite, got {surface_z}")
+    if material.compiled:
+        w = _compiled_trajectory(
+            elements, positions, rotations, lin_vels, ang_vels, points, material, surface_z
+        )
+        return Wrench(w[:, :3], w[:, 3:])
     ne = len(elements)
     forces = np.zeros((t, 3))
     moments = np.zeros((t, 3))

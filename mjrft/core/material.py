@@ -436,6 +436,11 @@ class Material:
             source=source,
         )
 
+    @property
+    def compiled(self) -> bool:
+        """True if the compiled kernel evaluates this medium (Fourier form, constant alpha_y)."""
+        return self.fourier is not None and self.alpha_y_fn is None
+
     @functools.cached_property
     def kernel_coefficients(self) -> np.ndarray:
         """(18,) generic coefficients in the compiled kernel's combined form (Fourier media)."""

@@ -37,25 +37,39 @@ def _as_rows(name: str, x: np.ndarray, n: int | None) -> np.ndarray:
     return a
 
 
-def _check_inputs(pos, normal, area, vel, surface_z):
-    pos = _as_rows("pos", pos, None)
+_INPUT_NAMES = {
+    kernel.BAD_POS: "pos",
+    kernel.BAD_NORMAL: "normal",
+    kernel.BAD_AREA: "area",
+    kernel.BAD_VEL: "vel",
+}
+
+
+def _shaped(pos, normal, area, vel, surface_z):
+    """Float64 C arrays of checked shapes, and surface_z checked finite."""
+    pos = np.ascontiguousarray(_as_rows("pos", pos, None))
     n = pos.shape[0]
-    normal = _as_rows("normal", normal, n)
-    vel = _as_rows("vel", vel, n)
-    area = np.asarray(area, dtype=np.float64)
+    normal = np.ascontiguousarray(_as_rows("normal", normal, n))
+    vel = np.ascontiguousarray(_as_rows("vel", vel, n))
+    area = np.ascontiguousarray(area, dtype=np.float64)
     if area.shape != (n,):
         raise ValueError(f"element_forces: area has shape {area.shape}, expected ({n},)")
-    for name, a in (("pos", pos), ("normal", normal), ("area", area), ("vel", vel)):
-        if not np.all(np.isfinite(a)):
-            i = int(np.flatnonzero(~np.isfinite(a).reshape(n, -1).all(axis=1))[0])
-            raise ValueError(f"element_forces: {name} of element {i} is not finite: {a[i]}")
-    if np.any(area < 0.0):
-        i = int(np.flatnonzero(area < 0.0)[0])
-        raise ValueError(f"element_forces: area of element {i} is negative ({area[i]}); need >= 0")
     surface_z = float(surface_z)
     if not np.isfinite(surface_z):
         raise ValueError(f"element_forces: surface_z must be finite, got {surface_z}")
     return pos, normal, area, vel, surface_z
+
+
+def _raise_bad(code: int, i: int, pos, normal, area, vel) -> None:
+    """ValueError naming element i's bad input (codes of kernel.checked_unit_normals)."""
+    if code in _INPUT_NAMES:
+        name = _INPUT_NAMES[code]
+        value = {"pos": pos, "normal": normal, "area": area, "vel": vel}[name][i]
+        raise ValueError(f"element_forces: {name} of element {i} is not finite: {value}")
+    if code == kernel.NEGATIVE_AREA:
+        raise ValueError(f"element_forces: area of element {i} is negative ({area[i]}); need >= 0")
+    if code == kernel.ZERO_NORMAL:
+        raise ValueError(f"element_forces: normal of element {i} has zero length")
 
 
 def element_forces(
@@ -80,12 +94,18 @@ def element_forces(
       or at rest. Finite for every finite input whose force magnitude is representable.
     Raises:
       ValueError on mismatched shapes, non-finite inputs, negative areas or zero-length normals.
+
+    The checks cost about 1 ns per element (10 % of the evaluation); normals that are not unit
+    cost a normalising pass more (about 5 ns). ``unit_normal_forces`` is the same evaluation
+    without checks, for arrays you trust.
     """
-    pos, normal, area, vel, surface_z = _check_inputs(pos, normal, area, vel, surface_z)
-    n_hat, n_len = _unit_rows(normal)
-    if np.any(n_len == 0.0):
-        i = int(np.flatnonzero(n_len == 0.0)[0])
-        raise ValueError(f"element_forces: normal of element {i} has zero length")
+    pos, normal, area, vel, surface_z = _shaped(pos, normal, area, vel, surface_z)
+    bad, nonunit = kernel.input_flags(pos, normal, area, vel)
+    n_hat = normal
+    if bad or nonunit:  # name the culprit, or normalise (unit normals skip this pass)
+        n_hat = np.empty_like(pos)
+        code, i = kernel.checked_unit_normals(pos, normal, area, vel, n_hat)
+        _raise_bad(code, i, pos, normal, area, vel)
     return unit_normal_forces(pos, n_hat, area, vel, material, surface_z)
 
 
@@ -102,7 +122,7 @@ def unit_normal_forces(
     Args as ``element_forces``, but float64 arrays of matching shapes, all finite, areas >= 0
     and `n_hat` unit normals, world frame.
     """
-    if material.fourier is not None and material.alpha_y_fn is None:
+    if material.compiled:
         out = np.empty_like(pos)
         kernel.forces(
             pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,

@@ -99,7 +99,7 @@ class GranularField:
         #: body, ``mjrft.field.model.free_rigid``).
         self.stick_eligible = np.array([free_rigid(model, int(b), tagged) for b in self.body_ids])
         m = self.scene.material
-        self._native = m.fourier is not None and m.alpha_y_fn is None
+        self._native = m.compiled
         key = 0 if self._native else self._register_python_material()
         self._tables = build_tables(model, self.scene, self.bodies, self.stick_eligible, key)
         #: (nbody, 6) wrench of the most recent installed pass of any of the model's MjData

@@ -171,7 +171,11 @@ def _trampoline() -> int:
 def _guard_address() -> int:
     """Address of the native guard, compiled on first use (before any global is touched)."""
     if "guard" not in _state:
-        _state["guard"] = _build_guard(_trampoline())
+        # Deferred too: a KeyboardInterrupt inside numba's first compilation of a process can
+        # land in its lazy imports and leave numba unable to compile anything after (about a
+        # second of Ctrl-C held back, once per process).
+        with DeferredInterrupt():
+            _state["guard"] = _build_guard(_trampoline())
     return _state["guard"].address
 
 
@@ -218,7 +222,7 @@ def install(
     key = model._address
     if key in _handlers:
         raise RuntimeError("a granular field is already installed for this MjModel")
-    _guard_address()  # compiles the guard (seconds) while no state is changed yet
+    _guard_address()  # compiles the guard (a second) while no state is changed yet
     with _lock, DeferredInterrupt() as interrupt:
         if len(_handlers) >= _MAX_MODELS:
             raise RuntimeError(f"at most {_MAX_MODELS} models can have installed fields at once")
