@@ -53,3 +53,31 @@ def test_core_imports_no_mujoco_rerun_or_plotting():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_the_field_and_the_public_calls_run_without_scipy():
+    """numba's matrix products call BLAS through scipy (and a BLAS may start threads): the
+    compiled code does its small products itself, so none of it needs scipy."""
+    script = """
+import sys
+sys.modules["scipy"] = None  # any import of scipy fails
+import mujoco, numpy as np, mjrft
+from mjrft.field import GranularField
+from mjrft.app import demos
+m = mujoco.MjModel.from_xml_path(sys.argv[1])
+d = mujoco.MjData(m)
+mujoco.mj_resetDataKeyframe(m, d, 0)
+f = GranularField(m)
+with f.installed():
+    for _ in range(1500):  # falls, then rests: the treatment's stick and slip paths run
+        mujoco.mj_step(m, d)
+b = m.body("sphere").id
+assert abs(f.wrench_of(d)[b, 2] / (m.body_mass[b] * 9.81) - 1) < 1e-6, f.wrench_of(d)[b]
+assert f.stats["stuck"] > 0
+assert demos.ellipsoid_pitch(n_triangles=300).force[:, 2].max() > 0
+print("ok")
+"""
+    model = Path(__file__).resolve().parents[1] / "models" / "sphere_drop.xml"
+    out = subprocess.run([sys.executable, "-c", script, str(model)], capture_output=True,
+                         text=True, timeout=600)  # fmt: skip
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stdout + out.stderr

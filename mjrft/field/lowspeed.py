@@ -278,13 +278,13 @@ def implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
         for c in range(6):
             probe[c] = twist[c] + h * basis[q, c]
         twist_wrench(m_rec, e_rec, k, probe[:3], probe[3:], pw)
-        mu = mm @ basis[q]
+        mu = mv(mm, basis[q])
         for r in range(6):
             dw = (pw[r] - w[r]) / h
             for c in range(6):
                 jac[r, c] += dw * mu[c]
     end_pure = np.empty(6)
-    epa = dt * (ii @ (other[3:] + w[3:]))
+    epa = dt * mv(ii, other[3:] + w[3:])
     for c in range(3):
         end_pure[c] = twist[c] + dt * (other[c] + w[c]) / mass
         end_pure[3 + c] = twist[3 + c] + epa[c]
@@ -293,14 +293,14 @@ def implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
         return False
     jac /= cs
     a = mm - dt * jac
-    rhs = mm @ (end_pure - cs * twist)
+    rhs = mv(mm, end_pure - cs * twist)
     d_xi = solve6(a, rhs)
-    f = w + jac @ d_xi
+    f = w + mv(jac, d_xi)
     for c in range(6):
         if not np.isfinite(f[c]):
             return False
     end = np.empty(6)  # guards: the motion keeps its sense, no energy added over the step
-    ea = dt * (ii @ (other[3:] + f[3:]))
+    ea = dt * mv(ii, other[3:] + f[3:])
     for c in range(3):
         end[c] = twist[c] + dt * (other[c] + f[c]) / mass
         end[3 + c] = twist[3 + c] + ea[c]
@@ -310,6 +310,29 @@ def implicit_wrench(m_rec, e_rec, k, body, dt, semi, w):
         return False
     w[:] = f
     return True
+
+
+@numba.njit(inline="always", **_JIT)
+def mv(a, x):
+    """a (r, c) times x (c,), summed in index order. Written out rather than ``a @ x``: numba's
+    matrix products call BLAS through scipy, which a 3x3 or 6x6 product in every pass must not
+    need (nor start BLAS threads for)."""
+    y = np.empty(a.shape[0])
+    for r in range(a.shape[0]):
+        acc = 0.0
+        for c in range(a.shape[1]):
+            acc += a[r, c] * x[c]
+        y[r] = acc
+    return y
+
+
+@numba.njit(inline="always", **_JIT)
+def dot(x, y):
+    """x . y of two (n,) vectors, summed in index order (no BLAS: see :func:`mv`)."""
+    acc = 0.0
+    for c in range(x.shape[0]):
+        acc += x[c] * y[c]
+    return acc
 
 
 @numba.njit(**_JIT)
@@ -381,7 +404,7 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     for c in range(3):
         tw[c] = v[c]
         tw[3 + c] = om[c]
-    iom = iw @ om
+    iom = mv(iw, om)
     # Other wrenches over the step: gravity, the user's row, the gyroscopic torque -w x Iw.
     tau = np.empty(3)
     tau[0] = user[3] - (om[1] * iom[2] - om[2] * iom[1])
@@ -390,14 +413,14 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     v_free = np.empty(3)
     for c in range(3):
         v_free[c] = v[c] + dt * (gvec[c] + user[c] / mass)
-    om_free = om + dt * (ii @ tau)
-    dom_pure = dt * (ii @ w[3:])
+    om_free = om + dt * mv(ii, tau)
+    dom_pure = dt * mv(ii, w[3:])
     # <probe, xi>_M = |xi|^2_M + reach <d_xi, xi>_M, d_xi the predicted change over the step.
-    sq = mass * (v @ v) + om @ iom
+    sq = mass * dot(v, v) + dot(om, iom)
     dxi = 0.0
     for c in range(3):
         dxi += (v_free[c] - v[c] + dt * w[c] / mass) * mass * v[c]
-    dxi += (om_free - om + dom_pure) @ iom
+    dxi += dot(om_free - om + dom_pure, iom)
     ab[0] = sq
     ab[1] = dxi
     twist = np.empty(6)
@@ -411,7 +434,7 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     body = (twist, other, mass, iw, ii)
     if sq + reach * dxi > 0.0:
         # Stiff across the motion: (reach dt)^2 |M^-1 W|^2_M >= |xi|^2_M (module docstring, 2).
-        wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + w[3:] @ (ii @ w[3:])
+        wn2 = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) / mass + dot(w[3:], mv(ii, w[3:]))
         fast = (reach * dt) ** 2 * wn2 < sq
         if (fast or not m.jacobian_step > 0.0) and adds_no_energy(w, body, dt, semi):
             return PURE
@@ -430,7 +453,7 @@ def adds_no_energy(w, body, dt, semi):
     12 % of its energy in one step, benchmarks/energy.py). body: (twist, other, mass, iw, ii)."""
     twist, other, mass, _, ii = body
     end = np.empty(6)
-    ang = dt * (ii @ (other[3:] + w[3:]))
+    ang = dt * mv(ii, other[3:] + w[3:])
     size = 0.0
     for c in range(3):
         end[c] = twist[c] + dt * (other[c] + w[c]) / mass
@@ -451,14 +474,14 @@ def stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, keeps):
     decision; sets w (6,). body: (twist, other, mass, iw, ii) as in :func:`treat_body`;
     v_free, om_free (3,): the free motion's end twist."""
     twist, other, mass, iw, ii = body
-    n2 = mass * (v_free @ v_free) + om_free @ (iw @ om_free)
+    n2 = mass * dot(v_free, v_free) + dot(om_free, mv(iw, om_free))
     if n2 > 0.0:
         rw = np.zeros(6)
         twist_wrench(m_rec, e_rec, k, v_free, om_free, rw)
         diss = -(rw[0] * v_free[0] + rw[1] * v_free[1] + rw[2] * v_free[2])
         diss -= rw[3] * om_free[0] + rw[4] * om_free[1] + rw[5] * om_free[2]
         if dt * diss < n2:
-            om_end = om_free + dt * (ii @ rw[3:])
+            om_end = om_free + dt * mv(ii, rw[3:])
             end = np.empty(6)
             for c in range(3):
                 end[c] = v_free[c] + dt * rw[c] / mass
@@ -469,7 +492,7 @@ def stick_or_slip(m_rec, e_rec, k, body, v_free, om_free, dt, semi, w, keeps):
                 return SLIP
             if keeps and adds_no_energy(w, body, dt, semi):
                 return PURE
-    iomf = iw @ om_free
+    iomf = mv(iw, om_free)
     for c in range(3):
         w[c] = -mass * v_free[c] / dt
         w[3 + c] = -iomf[c] / dt
