@@ -110,8 +110,8 @@ def test_interrupts_while_entering_and_leaving_leave_a_working_process():
 
 @pytest.mark.parametrize("delay", [0.05, 0.6])
 def test_an_interrupt_while_the_guard_compiles_leaves_a_working_process(delay):
-    """The first installed() of a process compiles the native guard (about a second): Ctrl-C
-    during it must leave nothing half-installed."""
+    """The first installed() of a process loads the native guard (half a second; longer when
+    it compiles): Ctrl-C during it must leave nothing half-installed."""
     script = textwrap.dedent(
         f"""
         import os, signal, mujoco
@@ -140,7 +140,7 @@ def test_an_interrupt_while_the_guard_compiles_leaves_a_working_process(delay):
         print("clean")
         """
     )
-    # A fresh process compiles the guard again (it is not cached); the pass loads from cache.
+    # A fresh process loads the guard and the pass from numba's cache.
     out = subprocess.run(
         [sys.executable, "-c", script], capture_output=True, text=True, timeout=300
     )

@@ -30,8 +30,15 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+import llvmlite.binding as llvm
 import mujoco
 import numpy as np
+from llvmlite import ir
+from numba import cfunc, types
+from numba.extending import intrinsic
+
+from mjrft.field import passive
+from mjrft.field.tables import u64_ptr
 
 _MAX_MODELS = 256
 _MAX_DATAS = 4096
@@ -56,56 +63,88 @@ def _libmujoco() -> ctypes.CDLL:
     return ctypes.CDLL(candidates[0])
 
 
-def _build_guard(trampoline_address: int):
-    """Compile the native guard: native pass for registered MjData, else the trampoline."""
-    from numba import cfunc, types
-    from numba.extending import intrinsic
+# Run-time inputs of the native guard: (registry address, MjData table address, the binding's
+# trampoline, the pass mode). The guard reads them through the linker symbol _SLOTS_SYMBOL
+# rather than as compile-time constants, so numba caches it on disk like the pass (compiling it
+# took 1.7 s of every process's start).
+_SLOTS_SYMBOL = "mjrft_guard_slots"
+_slots = np.zeros(4, dtype=np.uint64)
+llvm.add_symbol(_SLOTS_SYMBOL, _slots.ctypes.data)
+_slots[0] = _registry.ctypes.data
+_slots[1] = _datas.ctypes.data
+_slots[3] = passive.INSTALLED
 
-    from mjrft.field import passive
-    from mjrft.field.tables import u64_ptr
 
-    @intrinsic
-    def _address(typingctx, ptr):
-        sig = types.uint64(types.voidptr)
+@intrinsic
+def _slot(typingctx, i):
+    """_slots[i], loaded from the linker symbol at run time."""
+    sig = types.uint64(types.intp)
 
-        def codegen(context, builder, signature, args):
-            return builder.ptrtoint(args[0], context.get_value_type(types.uint64))
+    def codegen(context, builder, signature, args):
+        gv = builder.module.globals.get(_SLOTS_SYMBOL)
+        if gv is None:
+            gv = ir.GlobalVariable(builder.module, ir.ArrayType(ir.IntType(64), 4), _SLOTS_SYMBOL)
+            gv.linkage = "external"
+        return builder.load(builder.gep(gv, [ir.Constant(ir.IntType(32), 0), args[0]]), align=8)
 
-        return sig, codegen
+    return sig, codegen
 
-    proto = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
-    trampoline = proto(trampoline_address)
-    registry_address = np.uint64(_registry.ctypes.data)
-    datas_address = np.uint64(_datas.ctypes.data)
-    step = passive.step
-    # The mode as a run-time value (a literal would make numba compile the pass once more).
-    modes = np.array([passive.INSTALLED], dtype=np.int64)
-    ok = passive.OK
 
-    @cfunc(types.void(types.voidptr, types.voidptr), nopython=True)
-    def guard(m, d):
-        reg = u64_ptr(registry_address)
-        key = _address(m)
-        table = np.uint64(0)
-        found = False
-        for i in range(reg[0]):
-            if reg[1 + 2 * i] == key:
-                table = reg[2 + 2 * i]
-                found = True
+@intrinsic
+def _address(typingctx, ptr):
+    """A pointer as an integer."""
+    sig = types.uint64(types.voidptr)
+
+    def codegen(context, builder, signature, args):
+        return builder.ptrtoint(args[0], context.get_value_type(types.uint64))
+
+    return sig, codegen
+
+
+@intrinsic
+def _call_passive(typingctx, function, m, d):
+    """Call the C function at address `function` as a passive callback f(m, d)."""
+    sig = types.void(types.uint64, types.voidptr, types.voidptr)
+
+    def codegen(context, builder, signature, args):
+        i8p = ir.IntType(8).as_pointer()
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i8p])
+        builder.call(builder.inttoptr(args[0], fnty.as_pointer()), [args[1], args[2]])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+def _guard(m, d):
+    """The native passive callback: the field's native pass for a registered MjData of an
+    installed model, the trampoline to Python for other MjData of installed models or a pass
+    that reports a problem, nothing for any other model."""
+    reg = u64_ptr(_slot(0))
+    key = _address(m)
+    table = np.uint64(0)
+    found = False
+    for i in range(reg[0]):
+        if reg[1 + 2 * i] == key:
+            table = reg[2 + 2 * i]
+            found = True
+            break
+    if not found:
+        return
+    if table != 0:
+        dat = u64_ptr(_slot(1))
+        dkey = _address(d)
+        for j in range(dat[0]):
+            if dat[1 + 3 * j] == dkey and dat[2 + 3 * j] == key:
+                if passive.step(table, dat[3 + 3 * j], np.int64(_slot(3))) == passive.OK:
+                    return
                 break
-        if not found:
-            return
-        if table != 0:
-            dat = u64_ptr(datas_address)
-            dkey = _address(d)
-            for j in range(dat[0]):
-                if dat[1 + 3 * j] == dkey and dat[2 + 3 * j] == key:
-                    if step(table, dat[3 + 3 * j], modes[0]) == ok:
-                        return
-                    break
-        trampoline(m, d)
+    _call_passive(_slot(2), m, d)
 
-    return guard
+
+def _compiled_guard():
+    """The guard as a C callback, compiled or loaded from numba's cache on first use (a cfunc
+    compiles when it is created: at import it would hold up every import of the field)."""
+    return cfunc(types.void(types.voidptr, types.voidptr), nopython=True, cache=True)(_guard)
 
 
 def _dispatch(m, d) -> None:
@@ -169,14 +208,16 @@ def _trampoline() -> int:
 
 
 def _guard_address() -> int:
-    """Address of the native guard, compiled on first use (before any global is touched)."""
+    """Address of the native guard, loaded from numba's cache (or compiled) on first use,
+    before any global is touched."""
     if "guard" not in _state:
-        # Deferred too: a KeyboardInterrupt inside numba's first compilation of a process can
-        # land in its lazy imports and leave numba unable to compile anything after (about a
-        # second of Ctrl-C held back, once per process).
+        # Deferred too: a KeyboardInterrupt inside numba's compilation or cache load can land in
+        # its lazy imports and leave numba unable to compile anything after.
         with DeferredInterrupt():
-            _state["guard"] = _build_guard(_trampoline())
-    return _state["guard"].address
+            _slots[2] = _trampoline()
+            _state["compiled_guard"] = _compiled_guard()  # keeps the code alive
+            _state["guard"] = _state["compiled_guard"].address
+    return _state["guard"]
 
 
 def _route() -> None:
@@ -222,7 +263,7 @@ def install(
     key = model._address
     if key in _handlers:
         raise RuntimeError("a granular field is already installed for this MjModel")
-    _guard_address()  # compiles the guard (a second) while no state is changed yet
+    _guard_address()  # loads or compiles the guard while no state is changed yet
     with _lock, DeferredInterrupt() as interrupt:
         if len(_handlers) >= _MAX_MODELS:
             raise RuntimeError(f"at most {_MAX_MODELS} models can have installed fields at once")
@@ -260,7 +301,7 @@ def _give_back_global() -> None:
     """
     replaced = _original["get"]() is not _dispatch or _c_global().value not in (
         _state.get("trampoline"),
-        _state["guard"].address if "guard" in _state else None,
+        _state.get("guard"),
     )
     mujoco.set_mjcb_passive, mujoco.get_mjcb_passive = _original["set"], _original["get"]
     _original["set"](_state.pop("user_callback", None))
