@@ -12,7 +12,7 @@ Run: python benchmarks/pareto.py [--quick]
    triangles, the mesh near that count with the most mid-planes on lattice lines. Metrics:
      force error  = RMS_t |F(t) - F_ref(t)| / max_t |F_ref(t)|,
      moment error = RMS_t |M(t) - M_ref(t)| / (max_t |F_ref(t)| * L),
-   M about the body origin (sphere/ellipsoid centre, paraboloid base), L = the largest distance
+   M about the body origin (sphere/ellipsoid centre, the paraboloid's pivot), L = the largest distance
    of a surface point from that origin (the moment of a symmetric body about its centre can be
    near zero, so it is scaled by peak force times size, not by its own peak). Cost: wall time of
    one evaluation per trajectory sample (compiled kernel ``mjrft._kernel.body_wrench``, the
@@ -31,7 +31,7 @@ Run: python benchmarks/pareto.py [--quick]
 3. Cost per mj_step vs triangle count (MuJoCo, field installed, Euler, dt = 1 ms):
    models/sphere_drop.xml (sphere resting in the medium, t = 0.3 s) and
    models/ellipsoid_pitch.xml (deep, t = 10 s); medians over repeats. The root rig is a fixed
-   3120-triangle mesh, so the paraboloid's cost is the per-sample time of part 1.
+   2976-triangle mesh, so the paraboloid's cost is the per-sample time of part 1.
 4. Trajectory error vs timestep (Euler, 2000 triangles): ellipsoid_pitch.xml (driven rig, 4 s;
    RFT force error as in 1) and sphere_drop.xml (free, 1 s; CoM position error) at dt = 0.25,
    0.5, 1, 2 ms against dt = 0.125 ms, on a common 2 ms time grid.
@@ -161,9 +161,10 @@ def root_rig_motion(dt: float) -> Motion:
 
 
 def root_shape(n: int) -> ElementSet:
-    """The demo's paraboloid with its base centre (the pivot) at the body origin."""
+    """The demo's paraboloid placed as in the demo: apex ``ROOT_PIVOT_ABOVE_APEX`` below the
+    body origin (the pivot)."""
     shape = geometry.paraboloid(demos.ROOT_RADIUS, demos.ROOT_LENGTH, n_triangles=n)
-    return shape.transformed(np.eye(3), np.array([0.0, 0.0, -demos.ROOT_LENGTH]))
+    return shape.transformed(np.eye(3), np.array([0.0, 0.0, -demos.ROOT_PIVOT_ABOVE_APEX]))
 
 
 _NO_REGION = np.zeros((2, 3))

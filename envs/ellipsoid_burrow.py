@@ -1,6 +1,6 @@
 """``ellipsoid_burrow``: the mole-crab ellipsoid rig pushed into the medium while it pitches.
 
-The physics is ``models/ellipsoid_pitch.xml`` (the Treers et al. 2021 ellipsoid, 36 x 19 mm,
+The physics is ``models/ellipsoid_pitch.xml`` (the Treers et al. 2021 ellipsoid, 36.1 x 19.2 mm,
 pitching +-9 deg through a crank-rocker four-bar on a vertical carriage) with one change that
 makes burrowing a control problem: the carriage's vertical drive is a **force** (thrust) motor
 instead of a velocity servo, and the rig's counterweight balances the carriage and linkage
@@ -26,8 +26,8 @@ Observations (ordered dict, float64):
 Reward: depth gained by the centre over the control step per unit of actuator work, [m/J]
 (``envs.base.DepthPerWorkTask``; crank and thrust work, |force x velocity| summed per substep).
 
-Episode: starts at rest from the rig's keyframe (ellipsoid tip on the surface, pitch 0) raised by
-a random 0-5 mm; ``time_limit`` (default 20 s); no termination otherwise.
+Episode: starts at rest from the rig's keyframe (pitch 0, ellipsoid tip 0.05 mm below the
+surface) raised by a random 0-5 mm; ``time_limit`` (default 20 s); no termination otherwise.
 """
 
 from __future__ import annotations

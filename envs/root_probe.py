@@ -1,16 +1,16 @@
 """``root_probe``: the circumnutating root-tip paraboloid pushed into the medium.
 
 The physics is ``models/root_circumnutation.xml`` (the Treers et al. 2021 root tip: paraboloid,
-35.5 mm long, 6 mm base radius, pivot at its base centre) with three changes:
+34.6 mm long, 10 mm base radius, pivot on its axis 35.8 mm above the apex) with three changes:
 
 * the fixed 10 deg tilt becomes a hinge ``tilt`` about the yaw frame's y axis through the pivot,
   driven by a position servo (kp = 10 N m/rad, kv = 0.2 N m s/rad, armature 1e-3 kg m^2: a
   0.01 N m RFT moment moves it 1 mrad), so the tip angle is an action;
 * the descent velocity servo becomes a constant **thrust** force (``thrust``, default 0.5 N)
   pushing the carriage down, with the carriage and yaw frame counterweighted (``gravcomp``) so
-  the load on the tip is the thrust plus the tip's own weight (0.02 N): how deep the probe gets
+  the load on the tip is the thrust plus the tip's own weight (0.056 N): how deep the probe gets
   is up to the medium and the motion;
-* the start pose has the tip touching the surface (pivot 35.5 mm x cos(tilt) above it).
+* the start pose has the apex touching the surface (pivot 35.8 mm x cos(tilt) above it).
 
 The yaw drive stays the rig's intvelocity servo (ctrl = yaw rate). Circumnutation (yawing a
 tilted tip) turns part of the tip's motion horizontal, where granular resistance to sinking is
@@ -45,11 +45,12 @@ import numpy as np
 from dm_env import specs
 
 from mjrft import Material
+from mjrft.app.demos import ROOT_PIVOT_ABOVE_APEX
 
 from .base import DepthPerWorkTask, make_environment, models_dir, resolve_random
 from .physics import GranularPhysics
 
-TIP_LENGTH = 0.0355  # m, pivot (base centre) to apex (models/root_circumnutation.xml)
+TIP_LENGTH = ROOT_PIVOT_ABOVE_APEX  # m, pivot to apex (models/root_circumnutation.xml)
 MAX_TILT = 0.5  # rad
 MAX_YAW_RATE = 1.0  # rad/s
 START_TILT = math.radians(10.0)  # rad, the paper's tilt

@@ -175,10 +175,22 @@ def test_ellipsoid_pitch_starts_at_zero_and_rises(ellipsoid_run):
 
 def test_ellipsoid_descent_and_start_height(ellipsoid_run):
     t, z = ellipsoid_run["t"], ellipsoid_run["pivot_z"]
-    assert z[0] == pytest.approx(0.018, abs=1e-6)  # tip touches the surface at t = 0
+    assert z[0] == pytest.approx(0.018, abs=1e-6)  # the authors' start: pivot 1.8 cm up
     speed = -np.polyfit(t, z, 1)[0]
     assert speed == pytest.approx(0.005, rel=0.02)
     assert z[-1] == pytest.approx(0.018 - 0.06, abs=1e-4)
+
+
+def test_ellipsoid_has_the_released_dimensions():
+    """Semi-axes of the authors' released ellipsoid about its centre (their point of rotation):
+    from the 1.8 cm start height the tip starts 0.05 mm below the surface; the stalk starts at
+    the ellipsoid's top."""
+    model, data = load("ellipsoid_pitch.xml")
+    ellipsoid = model.geom("ellipsoid")
+    np.testing.assert_allclose(ellipsoid.size, [0.0096, 0.0096, 0.01805], rtol=1e-12)
+    assert geom_min_z(model, data, ellipsoid.id) == pytest.approx(-0.00005, abs=1e-9)
+    stalk = model.geom("stalk")  # a vertical capsule: pos = midpoint, size[1] = half-length
+    assert stalk.pos[2] - stalk.size[1] == pytest.approx(0.01805, abs=1e-9)
 
 
 def test_ellipsoid_loop_closure(ellipsoid_run):
@@ -242,8 +254,23 @@ def test_root_start_tip_depth():
     model, data = load("root_circumnutation.xml")
     assert data.sensor("descent_pos").data[0] == 0.0  # pivot at the surface
     low = mesh_world_vertices(model, data, "root_tip")[:, 2].min()
-    assert low == pytest.approx(-0.0355 * math.cos(math.radians(10.0)), abs=5e-4)
+    assert low == pytest.approx(-0.0358 * math.cos(math.radians(10.0)), abs=5e-4)
     assert model.mesh_facenum[model.mesh("root_tip").id] >= 2000
+
+
+def test_root_has_the_released_dimensions():
+    """The authors' released root tip: 34.6 mm from apex to base, 10 mm base radius, the apex
+    35.8 mm below the pivot (their point of rotation) on the axis."""
+    tol = 1e-8  # m: MuJoCo stores mesh vertices in single precision (~2e-9 m at 2 cm)
+    model, data = load("root_circumnutation.xml")
+    root = data.body("root")
+    local = (mesh_world_vertices(model, data, "root_tip") - root.xpos) @ root.xmat.reshape(3, 3)
+    assert local[:, 2].min() == pytest.approx(-0.0358, abs=tol)
+    assert local[:, 2].max() == pytest.approx(-0.0358 + 0.0346, abs=tol)
+    assert np.hypot(local[:, 0], local[:, 1]).max() == pytest.approx(0.010, abs=tol)
+    apex = local[np.argmin(local[:, 2])]
+    np.testing.assert_allclose(apex, [0.0, 0.0, -0.0358], atol=tol)
+    np.testing.assert_allclose(model.site("tip").pos, apex, atol=tol)  # site "tip" = apex
 
 
 def test_root_one_turn_in_24_s_and_4_cm_per_turn():
@@ -259,9 +286,9 @@ def test_root_one_turn_in_24_s_and_4_cm_per_turn():
     drop = z0 - data.joint("descent").qpos[0]
     assert turns == pytest.approx(1.0, rel=0.02)
     assert drop / turns == pytest.approx(0.04, rel=0.02)
-    # The tip circles at radius 35.5 sin(10 deg) about the pivot's vertical.
+    # The tip circles at radius 35.8 sin(10 deg) about the pivot's vertical.
     radius = np.hypot(*np.array(tip)[:, :2].T)
-    np.testing.assert_allclose(radius, 0.0355 * math.sin(math.radians(10.0)), rtol=1e-3)
+    np.testing.assert_allclose(radius, 0.0358 * math.sin(math.radians(10.0)), rtol=1e-3)
 
 
 # --- plate_rig.xml --------------------------------------------------------------------------

@@ -28,6 +28,26 @@ def test_models_directory_has_the_rigs():
     } <= names
 
 
+def test_the_rigs_carry_the_prescribed_demos_bodies():
+    """The rig-vs-prescribed comparison of `mjrft demo` needs the same bodies on both sides."""
+    model = mujoco.MjModel.from_xml_path(str(MODELS / "ellipsoid_pitch.xml"))
+    np.testing.assert_allclose(model.geom("ellipsoid").size, demos.ELLIPSOID_SEMI_AXES)
+    model = mujoco.MjModel.from_xml_path(str(MODELS / "root_circumnutation.xml"))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    g = model.geom("root_tip")
+    adr, n = model.mesh_vertadr[g.dataid[0]], model.mesh_vertnum[g.dataid[0]]
+    world = (
+        data.geom("root_tip").xpos
+        + model.mesh_vert[adr : adr + n] @ data.geom("root_tip").xmat.reshape(3, 3).T
+    )
+    local = (world - data.body("root").xpos) @ data.body("root").xmat.reshape(3, 3)
+    tol = 1e-8  # m: MuJoCo stores mesh vertices in single precision
+    assert local[:, 2].min() == pytest.approx(-demos.ROOT_PIVOT_ABOVE_APEX, abs=tol)
+    assert np.ptp(local[:, 2]) == pytest.approx(demos.ROOT_LENGTH, abs=tol)
+    assert np.hypot(local[:, 0], local[:, 1]).max() == pytest.approx(demos.ROOT_RADIUS, abs=tol)
+
+
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
 @pytest.mark.parametrize("path", MODEL_FILES, ids=lambda p: p.stem)
 def test_every_model_runs_one_second_with_the_field(path, integrator):
@@ -68,7 +88,7 @@ def run_recording_states(model, fld, n_steps):
 def test_replaying_the_trajectory_through_the_core_reproduces_the_field(name):
     model = simulate.load_model(MODELS / f"{name}.xml")
     fld = GranularField(model, n_triangles=FAST_TRIANGLES)
-    n = 1500 if name == "ellipsoid_pitch" else 300  # the ellipsoid starts above the surface
+    n = 1500 if name == "ellipsoid_pitch" else 300  # the ellipsoid starts with its tip just in
     b, rec = run_recording_states(model, fld, n)
     replay = trajectory_wrenches(
         fld.body_element_set(b),

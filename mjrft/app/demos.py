@@ -15,18 +15,22 @@ from mjrft.core.body import trajectory_wrenches
 from mjrft.core.material import Material
 from mjrft.core.units import CM, DEG, MM
 
-# --- Mole-crab ellipsoid (Pacific mole crab, Emerita analoga): 36 mm tall x 19 mm wide/deep.
-ELLIPSOID_SEMI_AXES = (9.5 * MM, 9.5 * MM, 18.0 * MM)
+# --- Mole-crab ellipsoid (Pacific mole crab, Emerita analoga): 36.1 mm tall x 19.2 mm wide/deep,
+# the semi-axes of the authors' released mesh (ellipsoid-exp.stl) about its centre, which is the
+# released demo's point of rotation.
+ELLIPSOID_SEMI_AXES = (9.6 * MM, 9.6 * MM, 18.05 * MM)
 ELLIPSOID_PITCH_AMPLITUDE = 9.0 * DEG
 ELLIPSOID_PITCH_FREQUENCY = 0.625  # Hz, omega = 5 pi / 4 rad/s
 ELLIPSOID_DESCENT_SPEED = 0.5 * CM  # m/s
-ELLIPSOID_START_HEIGHT = 1.8 * CM  # pivot (centre) above the surface: the tip touches it at t=0
+ELLIPSOID_START_HEIGHT = 1.8 * CM  # pivot (centre) above the surface: the tip starts 0.05 mm below
 ELLIPSOID_DURATION = 12.0  # s, as in the released demo
 
-# --- Root-tip paraboloid circumnutation. The released STL's size is not published; we use the
-# released demo's pivot height (35.5 mm above the tip) as the length and a 6 mm base radius.
-ROOT_LENGTH = 35.5 * MM
-ROOT_RADIUS = 6.0 * MM
+# --- Root-tip paraboloid circumnutation: the authors' released mesh (root-tip.stl), a paraboloid
+# of revolution 34.6 mm from apex to base with a 10 mm base radius, yawing about the released
+# demo's point of rotation on its axis, 35.8 mm above the apex (1.2 mm above the base).
+ROOT_LENGTH = 34.6 * MM
+ROOT_RADIUS = 10.0 * MM
+ROOT_PIVOT_ABOVE_APEX = 35.8 * MM
 ROOT_TILT = 10.0 * DEG
 ROOT_YAW_RATE = 15.0 * DEG  # rad/s: one turn in 24 s
 ROOT_HELICAL_PITCH = 4.0 * CM  # descent per turn -> 1/6 cm/s
@@ -126,15 +130,15 @@ def root_circumnutation(
     dt: float = 0.1,
     duration: float = ROOT_DURATION,
 ) -> DemoResult:
-    """Root-tip paraboloid tilted 10 deg, yawing 15 deg/s about the vertical through its base.
+    """Root-tip paraboloid tilted 10 deg, yawing 15 deg/s about the vertical through its pivot.
 
-    The base centre (pivot) starts at the surface and descends 4 cm per turn, so the tip traces a
-    helix, as in the authors' circumnutation demo.
+    The pivot (on the axis, ROOT_PIVOT_ABOVE_APEX above the apex) starts at the surface and
+    descends 4 cm per turn, so the tip traces a helix, as in the authors' circumnutation demo.
     """
     material = material or Material.preset("glass_beads")
-    # Paraboloid apex at the shape origin pointing down; move the base centre to the body origin.
+    # Paraboloid apex at the shape origin pointing down; move the pivot to the body origin.
     shape = geometry.paraboloid(ROOT_RADIUS, ROOT_LENGTH, n_triangles=n_triangles)
-    elements = shape.transformed(np.eye(3), np.array([0.0, 0.0, -ROOT_LENGTH]))
+    elements = shape.transformed(np.eye(3), np.array([0.0, 0.0, -ROOT_PIVOT_ABOVE_APEX]))
     t = np.arange(0.0, duration + 0.5 * dt, dt)
     yaw = ROOT_YAW_RATE * t
     rot = _rot_z(yaw) @ _rot_y(np.full_like(t, ROOT_TILT))
