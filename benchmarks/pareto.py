@@ -12,10 +12,10 @@ Run: python benchmarks/pareto.py [--quick]
    triangles, the mesh near that count with the most mid-planes on lattice lines. Metrics:
      force error  = RMS_t |F(t) - F_ref(t)| / max_t |F_ref(t)|,
      moment error = RMS_t |M(t) - M_ref(t)| / (max_t |F_ref(t)| * L),
-   M about the body origin (sphere/ellipsoid centre, the paraboloid's pivot), L = the largest distance
-   of a surface point from that origin (the moment of a symmetric body about its centre can be
-   near zero, so it is scaled by peak force times size, not by its own peak). Cost: wall time of
-   one evaluation per trajectory sample (compiled kernel ``mjrft._kernel.body_wrench``, the
+   M about the body origin (sphere/ellipsoid centre, the paraboloid's pivot), L = the largest
+   distance of a surface point from that origin (the moment of a symmetric body about its centre
+   can be near zero, so it is scaled by peak force times size, not by its own peak). Cost: wall
+   time of one evaluation per trajectory sample (compiled kernel ``mjrft.core.kernel``, the
    field's own hot path; identical to ``mjrft.body.trajectory_wrenches`` to 1e-15, checked here).
 2. Fit error(n) = C n^-p per case (log-log least squares over 400 <= n <= REF/8); rule A (the
    three rig motions only: p = min p, C = MARGIN x the envelope of the measured points) and the
