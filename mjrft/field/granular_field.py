@@ -29,6 +29,7 @@ from mjrft.core.material import Material
 from mjrft.field import guard, lowspeed, ownership, passive, python_material
 from mjrft.field.model import BodyElements, body_elements, build_tables, free_rigid
 from mjrft.field.scene import Scene, scene_from_model
+from mjrft.field.signals import HeldSignals
 from mjrft.field.state import DataState, States
 from mjrft.field.tables import STATS
 
@@ -347,7 +348,7 @@ class Installed:
         return f
 
     def __exit__(self, *exc: object) -> None:
-        with guard.DeferredInterrupt():
+        with HeldSignals():
             try:
                 guard.uninstall(self.field.model)
             finally:

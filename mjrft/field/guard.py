@@ -25,7 +25,6 @@ from __future__ import annotations
 import ctypes
 import glob
 import os
-import signal
 import threading
 from collections.abc import Callable
 from typing import Any
@@ -38,6 +37,7 @@ from numba import cfunc, types
 from numba.extending import intrinsic
 
 from mjrft.field import passive
+from mjrft.field.signals import HeldSignals
 from mjrft.field.tables import u64_ptr
 
 _MAX_MODELS = 256
@@ -166,41 +166,11 @@ def _c_global() -> ctypes.c_void_p:
     return _state["c_global"]
 
 
-class DeferredInterrupt:
-    """Hold back Ctrl-C (SIGINT) over a critical section in the main thread, then raise it.
-
-    Installing or uninstalling a field changes several pieces of process state (MuJoCo's C
-    global, the binding's callable, the registries); a KeyboardInterrupt between two of them
-    would leave the process half-installed (every model compilation failing). Inside this
-    context SIGINT is only recorded; ``pending`` tells whether one arrived, and leaving the
-    context raises it, after the section completed or rolled back. Elsewhere than the main
-    thread Python delivers no signals, so nothing is changed there.
-    """
-
-    def __init__(self) -> None:
-        self.pending = False
-        self._previous = None
-
-    def __enter__(self) -> DeferredInterrupt:
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._record)
-        return self
-
-    def _record(self, signum, frame) -> None:
-        self.pending = True
-
-    def __exit__(self, kind, value, traceback) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-        if self.pending and kind is None:
-            raise KeyboardInterrupt
-
-
 def _trampoline() -> int:
     """Address of the binding's C trampoline to Python callables (fixed for the process)."""
     if "trampoline" not in _state:
         previous = _original["get"]()
-        with DeferredInterrupt():
+        with HeldSignals():
             _original["set"](_dispatch)
             _state["trampoline"] = _c_global().value
             _original["set"](previous)
@@ -213,7 +183,7 @@ def _guard_address() -> int:
     if "guard" not in _state:
         # Deferred too: a KeyboardInterrupt inside numba's compilation or cache load can land in
         # its lazy imports and leave numba unable to compile anything after.
-        with DeferredInterrupt():
+        with HeldSignals():
             _slots[2] = _trampoline()
             _state["compiled_guard"] = _compiled_guard()  # keeps the code alive
             _state["guard"] = _state["compiled_guard"].address
@@ -236,7 +206,7 @@ def _set_mjcb_passive(callback) -> None:
         raise RuntimeError(
             "a native (ctypes) mjcb_passive cannot be chained with an installed granular field"
         )
-    with _lock, DeferredInterrupt():
+    with _lock, HeldSignals():
         _state["user_callback"] = callback
         _route()
 
@@ -264,7 +234,7 @@ def install(
     if key in _handlers:
         raise RuntimeError("a granular field is already installed for this MjModel")
     _guard_address()  # loads or compiles the guard while no state is changed yet
-    with _lock, DeferredInterrupt() as interrupt:
+    with _lock, HeldSignals() as interrupt:
         if len(_handlers) >= _MAX_MODELS:
             raise RuntimeError(f"at most {_MAX_MODELS} models can have installed fields at once")
         if not _handlers:
@@ -317,7 +287,7 @@ def _give_back_global() -> None:
 def uninstall(model: mujoco.MjModel) -> None:
     """Stop routing `model`; restore the previous passive callback when no field remains.
     Atomic against Ctrl-C; a no-op if the model has no installed field."""
-    with _lock, DeferredInterrupt():
+    with _lock, HeldSignals():
         _uninstall(model._address)
 
 
