@@ -1,18 +1,33 @@
-"""Result files: atomic CSV writes and labelled PNG plots. A leaf: the core never imports it."""
+"""Result files: atomic CSV writes and labelled PNG figures. A leaf: the core never imports it.
+
+Figures are drawn with matplotlib's object API (no pyplot state) at fixed margins. Every line is
+decimated to a min/max envelope (``envelope_indices``: peaks survive), a panel's axis limits
+draw round-off noise flat at zero (``value_limits``), every PNG is at most ``MAX_PNG_PX`` pixels
+wide and high, and a scene of many bodies gets a bounded number of panels, so a figure costs
+about the same for any run length and any number of bodies.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import csv
+import functools
+import math
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from mjrft.app.demos import DemoResult
 from mjrft.core.units import CM
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 
 @contextlib.contextmanager
@@ -61,201 +76,589 @@ def demo_columns(result: DemoResult) -> dict[str, np.ndarray]:
     return cols
 
 
-def _pyplot():
-    import matplotlib
+# ----------------------------------------------------------------------------------------------
+# Figure rules: pure functions of the data.
 
-    matplotlib.use("Agg")  # headless: never needs a display
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def plot_demo(result: DemoResult, path: str | os.PathLike) -> Path:
-    """Force and moment vs pivot depth (and lateral vs vertical force) as one PNG, atomically."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
-    depth_cm = result.depth / CM
-    for i, ax in enumerate("xyz"):
-        axes[0].plot(depth_cm, result.force[:, i], label=f"$F_{ax}$")
-        axes[1].plot(depth_cm, result.moment[:, i] * 1e3, label=f"$M_{ax}$")
-    axes[0].set(xlabel="pivot depth [cm]", ylabel="RFT force [N]", title="Force vs depth")
-    axes[1].set(xlabel="pivot depth [cm]", ylabel="RFT moment about pivot [mN m]")
-    axes[1].set_title("Moment vs depth")
-    axes[2].plot(result.force[:, 2], result.force[:, 0], lw=0.8)
-    axes[2].set(xlabel="vertical force $F_z$ [N]", ylabel="lateral force $F_x$ [N]")
-    axes[2].set_title("Lateral vs vertical force")
-    for a in axes:
-        a.grid(alpha=0.3)
-    axes[0].legend()
-    axes[1].legend()
-    fig.suptitle(f"{result.title}  ({result.n_elements} triangles, world frame)")
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
-    return Path(path)
+#: Largest width and height of any PNG written here [px].
+MAX_PNG_PX = 2000
+#: Resolution of the figures [dots per inch]; a figure that would exceed MAX_PNG_PX gets less.
+DPI = 100
+#: Runs of rows a plotted line is decimated to (``envelope_indices``): at most 2 points per run
+#: for a time series, 4 for a curve of two series; more than a 2000-px panel can show.
+LINE_BINS = 1000
+#: zlib level of the PNGs: level 1 writes these line plots several times faster than level 6
+#: for files about a quarter larger.
+PNG_COMPRESSION = 1
+#: A series whose peak |value| is below this fraction of its panel's largest peak sets no axis
+#: limit: far above round-off (1e-16 relative) and far below what a 2000-px axis resolves (5e-4).
+NOISE_FRACTION = 1e-6
+#: Forces below this [N] are drawn flat at zero: 1 uN is less than the weight of one 0.8 mm glass
+#: bead (6.6 uN), the grain of the paper's medium, so no continuum RFT force is that small.
+FORCE_FLOOR_N = 1e-6
+#: Torques below this [N m] are drawn flat at zero: a 1 uN force on a 1 mm lever (one grain's
+#: weight at about one grain's size).
+TORQUE_FLOOR_NM = 1e-9
+#: A CoM depth that spans less than this over a run [m] (and less than the CoM's horizontal
+#: travel) counts as constant: about one 0.8 mm glass bead.
+DEPTH_SPAN_M = 1e-3
+#: Axis margin beyond the data, a fraction of the data's span on each side.
+LIMIT_MARGIN = 0.05
 
 
-def plot_time_series(result: DemoResult, path: str | os.PathLike) -> Path:
-    """Force components vs time, with the pitch (if any) on a second axis, as a PNG."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(10, 4.2), constrained_layout=True)
-    for i, c in enumerate("xyz"):
-        ax.plot(result.time, result.force[:, i], label=f"$F_{c}$")
-    ax.set(xlabel="time [s]", ylabel="RFT force [N]", title=result.title)
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper left")
-    if "pitch" in result.extra:
-        ax2 = ax.twinx()
-        ax2.plot(result.time, np.degrees(result.extra["pitch"]), "k:", lw=0.8, label="pitch")
-        ax2.set_ylabel("pitch [deg]")
-        ax2.legend(loc="lower left")
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
-    return Path(path)
-
-
-def plot_run(rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "") -> list[Path]:
-    """PNG plots of a `mjrft run` recording: RFT force/torque vs time, force vs depth and the
-    paper-style summary (``plot_paper``).
+def envelope_indices(values: np.ndarray, n_bins: int) -> np.ndarray:
+    """Rows of `values` that keep its min/max envelope: the decimation of a plotted line.
 
     Args:
-      rec: mjrft.simulate.Recording. surface_z: free-surface height [m].
-      out_dir: directory; files are '<stem>forces_vs_time.png', '<stem>forces_vs_depth.png' and
-        '<stem>rft_summary.png'.
+      values: (n,) or (n, k) samples in row (time) order.
+      n_bins: number of runs of ceil(n / n_bins) consecutive rows the rows are cut into (>= 1).
+    Returns:
+      Sorted row indices: the first and last rows and, in every run, the rows of the least and
+      the greatest value of each column (all rows when n <= 2 n_bins). The minimum and maximum
+      of every column over any set of whole runs are therefore kept exactly.
     """
-    plt = _pyplot()
+    v = np.asarray(values, dtype=np.float64)
+    v = v.reshape(len(v), -1)
+    n = len(v)
+    if n <= 2 * n_bins:
+        return np.arange(n)
+    size = -(-n // n_bins)
+    n_runs = -(-n // size)
+    # Pad with the last row so the runs reshape; a padded pick is clipped back to that row.
+    padded = np.concatenate([v, np.repeat(v[-1:], n_runs * size - n, axis=0)])
+    runs = padded.reshape(n_runs, size, v.shape[1])
+    start = (np.arange(n_runs) * size)[:, None]
+    picks = np.concatenate([start + runs.argmin(axis=1), start + runs.argmax(axis=1)], axis=1)
+    return np.unique(np.concatenate([[0, n - 1], np.minimum(picks.ravel(), n - 1)]))
+
+
+def value_limits(
+    series: Sequence[np.ndarray], floor: float, margin: float = LIMIT_MARGIN
+) -> tuple[float, float]:
+    """Axis limits (lo, hi) of the series drawn in one panel, with round-off noise drawn flat.
+
+    A series is significant when its peak |value| reaches both `floor` and NOISE_FRACTION of the
+    largest peak in the panel. The limits span the significant series, and zero when some series
+    is not significant (so it shows as a flat line at zero), widened by `margin` of the span on
+    each side; a span below NOISE_FRACTION of that largest peak counts as none, and the limits
+    are then +-`margin` of the value around it. With no significant series: (-floor, floor).
+
+    Args:
+      series: arrays in the panel's unit; non-finite values are ignored.
+      floor: smallest meaningful |value| in that unit (> 0), e.g. FORCE_FLOOR_N.
+      margin: fraction of the span added on each side.
+    """
+    finite = [
+        s[np.isfinite(s)] for s in (np.ravel(np.asarray(x, dtype=np.float64)) for x in series)
+    ]
+    peaks = [float(np.max(np.abs(s))) if s.size else 0.0 for s in finite]
+    top = max(peaks, default=0.0)
+    keep = [s for s, p in zip(finite, peaks, strict=True) if p >= max(floor, NOISE_FRACTION * top)]
+    if not keep:
+        return -floor, floor
+    lo, hi = min(float(s.min()) for s in keep), max(float(s.max()) for s in keep)
+    if len(keep) < len(finite):
+        lo, hi = min(lo, 0.0), max(hi, 0.0)
+    span = hi - lo
+    pad = margin * (span if span >= NOISE_FRACTION * top else max(abs(lo), abs(hi)))
+    return lo - pad, hi + pad
+
+
+class Abscissa(NamedTuple):
+    """The abscissa of a body's force-vs-position panels."""
+
+    values: np.ndarray  #: (n,) [cm]
+    name: str  #: 'depth' or 'horizontal distance'
+    label: str  #: axis label, with unit
+
+
+def abscissa(com: np.ndarray, surface_z: float) -> Abscissa:
+    """Where a body's RFT force is plotted against: its CoM depth, or else its horizontal travel.
+
+    The CoM depth below the surface (surface_z - z) when the depth varies substantially over
+    the run: its range is at least DEPTH_SPAN_M or at least the CoM's largest horizontal
+    distance from its start. Otherwise (motion at about constant depth, e.g. a plate dragged
+    sideways) the horizontal distance of the CoM from its start, |(x, y) - (x0, y0)|.
+
+    Args:
+      com: (n, 3) CoM positions, world frame [m], n >= 1. surface_z: free-surface height [m].
+    """
+    com = np.asarray(com, dtype=np.float64)
+    depth = surface_z - com[:, 2]
+    travel = np.hypot(com[:, 0] - com[0, 0], com[:, 1] - com[0, 1])
+    span = float(np.ptp(depth)) if len(depth) else 0.0
+    if span >= DEPTH_SPAN_M or span >= float(np.max(travel, initial=0.0)):
+        return Abscissa(depth / CM, "depth", "CoM depth below surface [cm]")
+    return Abscissa(travel / CM, "horizontal distance", "CoM horizontal distance from start [cm]")
+
+
+def figure_title(title: str | None, what: str) -> str:
+    """A figure's title: the run's `title` (scene, material, triangles) over what it shows."""
+    return f"{title}\n{what}" if title else what
+
+
+def shown_bodies(names: Sequence[str], peaks: Sequence[float], limit: int) -> list[int]:
+    """Indices of the at most `limit` bodies with the largest `peaks`, in their given order
+    (ties: the earlier body)."""
+    order = sorted(range(len(names)), key=lambda i: (-peaks[i], i))
+    return sorted(order[:limit])
+
+
+# ----------------------------------------------------------------------------------------------
+# The series of a run.
+
+
+@dataclass(frozen=True)
+class BodySeries:
+    """One intruding body's recorded series, world frame, SI.
+
+    Attributes: name; com (n, 3) CoM position [m]; force (n, 3) RFT force [N]; torque (n, 3)
+    RFT torque about the CoM [N m].
+    """
+
+    name: str
+    com: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+
+    @property
+    def peak_force(self) -> float:
+        """Largest |F| over the run [N] (0 if none is finite)."""
+        norms = np.linalg.norm(self.force, axis=1)
+        norms = norms[np.isfinite(norms)]
+        return float(norms.max()) if norms.size else 0.0
+
+
+def run_series(rec) -> tuple[np.ndarray, list[BodySeries]]:
+    """(time (n,) [s], per body its BodySeries) of a mjrft.app.simulate.Recording."""
     data = rec.array()
     col = {c: i for i, c in enumerate(rec.columns)}
-    t = data[:, col["time_s"]]
-    n = max(1, len(rec.body_names))
-    written = []
-    fig, axes = plt.subplots(2, n, figsize=(6.5 * n, 7), squeeze=False, constrained_layout=True)
-    fig2, axes2 = plt.subplots(1, n, figsize=(6.5 * n, 4.2), squeeze=False, constrained_layout=True)
-    for j, body in enumerate(rec.body_names):
-        depth_cm = (surface_z - data[:, col[f"{body}_com_z_m"]]) / CM
-        for a in "xyz":
-            f = data[:, col[f"{body}_rft_force_{a}_N"]]
-            axes[0, j].plot(t, f, label=f"$F_{a}$")
-            axes[1, j].plot(t, data[:, col[f"{body}_rft_torque_{a}_Nm"]] * 1e3, label=f"$M_{a}$")
-            axes2[0, j].plot(depth_cm, f, label=f"$F_{a}$")
-        axes[0, j].set(title=f"{body}: RFT force (world frame)", ylabel="force [N]")
-        axes[1, j].set(xlabel="time [s]", ylabel="torque about CoM [mN m]")
-        axes2[0, j].set(
-            title=f"{body}: RFT force vs depth",
-            xlabel="CoM depth below surface [cm]",
-            ylabel="force [N]",
-        )
-        for a in (axes[0, j], axes[1, j], axes2[0, j]):
-            a.grid(alpha=0.3)
-            a.legend()
-    for figure, name in ((fig, "forces_vs_time.png"), (fig2, "forces_vs_depth.png")):
-        path = Path(out_dir) / f"{stem}{name}"
-        with atomic_path(path) as tmp:
-            figure.savefig(tmp, format="png", dpi=110)
-        plt.close(figure)
-        written.append(path)
-    written.append(plot_paper(rec, surface_z, Path(out_dir) / f"{stem}{PAPER_PNG}"))
-    return written
 
+    def block(body: str, fmt: str) -> np.ndarray:
+        return data[:, [col[fmt.format(body, a)] for a in "xyz"]]
+
+    bodies = [
+        BodySeries(
+            b,
+            block(b, "{}_com_{}_m"),
+            block(b, "{}_rft_force_{}_N"),
+            block(b, "{}_rft_torque_{}_Nm"),
+        )
+        for b in rec.body_names or []
+    ]
+    return data[:, col["time_s"]], bodies
+
+
+# ----------------------------------------------------------------------------------------------
+# Drawing helpers.
+
+#: Colour and line style of the x, y, z components in every figure (the legends say so).
+COMPONENT_STYLE = {"x": ("C0", "-"), "y": ("C1", "--"), "z": ("C2", "-")}
+#: Bodies up to which `forces_vs_time.png` has a column per body; beyond, a panel per component.
+MAX_BODY_COLUMNS = 3
+#: Bodies drawn in a panel per component (the largest peak |F|; the others are named).
+MAX_LINES = 8
+#: Panels of `forces_vs_depth.png` (one per body, the largest peak |F|) and panels per row.
+MAX_POSITION_PANELS, POSITION_COLUMNS = 8, 4
+#: Bodies in the paper-style summary, a 2 x 2 block each (the largest peak |F|).
+MAX_SUMMARY_BODIES = 2
+#: Time markers on each curve of a lateral-vs-vertical panel.
+TIME_MARKERS = 12
+#: Text sizes and grid of every figure (matplotlib rcParams).
+STYLE = {
+    "font.size": 9,
+    "axes.titlesize": 9,
+    "axes.labelsize": 9,
+    "xtick.labelsize": 8,
+    "ytick.labelsize": 8,
+    "legend.fontsize": 9,
+    "figure.titlesize": 10,
+    # A fixed title height: matplotlib otherwise measures every panel's tick labels to place it.
+    "axes.titley": 1.0,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+    "lines.linewidth": 1.0,
+}
+_TITLE_IN, _LEGEND_IN = 0.42, 0.3  # heights of a two-line title and a legend row [in]
+
+
+def _styled(fn):
+    """Run a figure function under STYLE (rcParams are read as artists are made and drawn)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        import matplotlib
+
+        with matplotlib.rc_context(STYLE):
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A figure of equal panels at fixed margins: sizes in inches.
+
+    Attributes: rows, cols; panel (width, height); gap (horizontal, vertical) between panels,
+    room for tick labels, axis labels and titles; margins (left, right, top, bottom), the top
+    holding the figure title and legend.
+    """
+
+    rows: int
+    cols: int
+    panel: tuple[float, float] = (5.0, 2.6)
+    gap: tuple[float, float] = (0.85, 0.75)
+    margins: tuple[float, float, float, float] = (0.8, 0.3, 1.25, 0.55)
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """(width, height) of the figure [in]."""
+        left, right, top, bottom = self.margins
+        w = left + self.cols * self.panel[0] + (self.cols - 1) * self.gap[0] + right
+        h = top + self.rows * self.panel[1] + (self.rows - 1) * self.gap[1] + bottom
+        return w, h
+
+    @property
+    def dpi(self) -> float:
+        """DPI, lowered so that neither side exceeds MAX_PNG_PX."""
+        return min(DPI, math.floor(MAX_PNG_PX / max(self.size) * 1e3) / 1e3)
+
+
+def new_figure(grid: Grid, n_panels: int | None = None) -> tuple[Figure, list[Axes]]:
+    """A Figure laid out by `grid` and its first `n_panels` axes (all cells by default), in
+    row-major order."""
+    from matplotlib.figure import Figure
+
+    w, h = grid.size
+    left, right, top, bottom = grid.margins
+    fig = Figure(figsize=(w, h), dpi=grid.dpi)
+    gs = fig.add_gridspec(
+        grid.rows,
+        grid.cols,
+        left=left / w,
+        right=1 - right / w,
+        top=1 - top / h,
+        bottom=bottom / h,
+        wspace=grid.gap[0] / grid.panel[0],
+        hspace=grid.gap[1] / grid.panel[1],
+    )
+    n = grid.rows * grid.cols if n_panels is None else n_panels
+    axes = [fig.add_subplot(gs[k // grid.cols, k % grid.cols]) for k in range(n)]
+    for ax in axes:
+        ax.locator_params(nbins=5)  # fewer ticks: tick artists dominate the drawing time
+    return fig, axes
+
+
+def _head(fig: Figure, title: str, handles: list, ncol: int | None = None) -> None:
+    """Figure title at the top and a legend of `handles` under it, outside every panel."""
+    h = fig.get_figheight()
+    fig.suptitle(title, y=1 - 0.06 / h, va="top")
+    if handles:
+        fig.legend(
+            handles=handles,
+            loc="upper center",
+            bbox_to_anchor=(0.5, 1 - (0.06 + _TITLE_IN) / h),
+            ncol=ncol or len(handles),
+            frameon=False,
+        )
+
+
+def _note(fig: Figure, text: str) -> None:
+    """A line of text at the bottom left of the figure, below every panel."""
+    fig.text(0.01, 0.06 / fig.get_figheight(), text, fontsize=8, va="bottom", color="0.3")
+
+
+def _component_handles(symbols: str) -> list:
+    """Legend handles of the x, y, z components, labelled e.g. '$F_x$, $M_x$' for 'FM'."""
+    from matplotlib.lines import Line2D
+
+    return [
+        Line2D([], [], color=c, ls=ls, label=", ".join(f"${s}_{a}$" for s in symbols))
+        for a, (c, ls) in COMPONENT_STYLE.items()
+    ]
+
+
+def _line(ax: Axes, x: np.ndarray, y: np.ndarray, curve: bool = False, **style):
+    """Plot y against x decimated to its envelope (of y; of x and y when `curve`)."""
+    keep = envelope_indices(np.column_stack([x, y]) if curve else y, LINE_BINS)
+    return ax.plot(x[keep], y[keep], **style)[0]
+
+
+def _components(
+    ax: Axes, x: np.ndarray, v: np.ndarray, symbol: str, floor: float, curve: bool = False
+) -> None:
+    """Plot the x, y, z columns of v (n, 3) against x in COMPONENT_STYLE, labelled '$<symbol>_a$',
+    with y limits by value_limits(floor)."""
+    for i, (a, (color, ls)) in enumerate(COMPONENT_STYLE.items()):
+        _line(ax, x, v[:, i], curve=curve, color=color, ls=ls, label=f"${symbol}_{a}$")
+    ax.set_ylim(*value_limits(list(v.T), floor))
+
+
+def _time_axis(ax: Axes, t: np.ndarray) -> None:
+    if len(t) and t[-1] > t[0]:
+        ax.set_xlim(t[0], t[-1])
+
+
+def lateral_panel(fig: Figure, ax: Axes, t: np.ndarray, force: np.ndarray, what: str) -> None:
+    """Lateral (F_x, F_y) against vertical (F_z) force [N], in COMPONENT_STYLE, with dots at
+    TIME_MARKERS evenly spaced instants coloured by time and a time colour bar beside.
+
+    t: (n,) [s]. force: (n, 3) world frame [N]. what: the panel's title.
+    """
+    from matplotlib.colors import Normalize
+
+    fz = force[:, 2]
+    for i, a in enumerate("xy"):
+        color, ls = COMPONENT_STYLE[a]
+        _line(ax, fz, force[:, i], curve=True, color=color, ls=ls, label=f"$F_{a}$")
+    if len(t):
+        marks = np.unique(np.linspace(0, len(t) - 1, TIME_MARKERS).round().astype(int))
+        norm = Normalize(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
+        for i in (0, 1):
+            dots = ax.scatter(
+                fz[marks], force[marks, i], c=t[marks], cmap="viridis", norm=norm, s=14, zorder=3
+            )
+        fig.colorbar(dots, cax=ax.inset_axes([1.03, 0.0, 0.035, 1.0]), label="time [s] (dots)")
+    ax.set_xlim(*value_limits([fz], FORCE_FLOOR_N))
+    ax.set_ylim(*value_limits([force[:, 0], force[:, 1]], FORCE_FLOOR_N))
+    ax.set(xlabel="vertical force $F_z$ [N]", ylabel="lateral force [N]", title=what)
+
+
+def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
+    """Write `fig` as a PNG at its own dpi, atomically."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=fig.dpi, pil_kwargs={"compress_level": PNG_COMPRESSION})
+    return Path(path)
+
+
+def _not_shown(bodies: list[BodySeries], shown: list[int], where: str) -> str | None:
+    """The note naming the bodies a figure leaves out, or None."""
+    hidden = [b.name for i, b in enumerate(bodies) if i not in shown]
+    if not hidden:
+        return None
+    names = ", ".join(hidden[:6]) + (", ..." if len(hidden) > 6 else "")
+    return f"{len(hidden)} bodies with smaller peak |F| not shown ({names}): see {where}"
+
+
+# ----------------------------------------------------------------------------------------------
+# Figures of `mjrft run`.
 
 #: File name of the paper-style summary figure that `mjrft run` writes next to the CSV.
 PAPER_PNG = "rft_summary.png"
+#: The three figures of ``plot_run``, in the order written.
+RUN_PNGS = ("forces_vs_time.png", "forces_vs_depth.png", PAPER_PNG)
 #: Resolution of the summary figure [dots per inch].
-PAPER_DPI = 100
+PAPER_DPI = DPI
 
 
-def plot_paper(rec, surface_z: float, path: str | os.PathLike, title: str | None = None) -> Path:
-    """Paper-style summary of a run, a 2 x 2 block of panels per intruding body, as a PNG.
+def time_figure(t: np.ndarray, bodies: list[BodySeries], title: str | None = None) -> Figure:
+    """RFT force [N] and torque about the CoM [mN m] vs time [s], world frame.
 
-    Panels (world frame, SI except where the axis says otherwise): (a) RFT force vs CoM depth
-    below the surface [cm]; (b) RFT torque about the CoM vs depth [mN m]; (c) RFT force vs time
-    [s]; (d) lateral (F_x, F_y) vs vertical (F_z) force [N], the trajectory coloured by time.
+    Up to MAX_BODY_COLUMNS bodies: a column per body, its x, y, z components in each panel.
+    More: a panel per component (F_x ... M_z), a line per body for the MAX_LINES bodies of the
+    largest peak |F| (the others named below).
+    """
+    what = "RFT force and torque about the CoM vs time (world frame)"
+    if len(bodies) <= MAX_BODY_COLUMNS:
+        fig, axes = new_figure(Grid(2, max(1, len(bodies))))
+        for j, b in enumerate(bodies):
+            top, bottom = axes[j], axes[len(bodies) + j]
+            _components(top, t, b.force, "F", FORCE_FLOOR_N)
+            _components(bottom, t, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3)
+            top.set(title=f"{b.name}: RFT force", ylabel="force [N]")
+            bottom.set(title=f"{b.name}: RFT torque", ylabel="torque about CoM [mN m]")
+            bottom.set_xlabel("time [s]")
+            _time_axis(top, t)
+            _time_axis(bottom, t)
+        _head(fig, figure_title(title, what), _component_handles("FM"))
+        return fig
+    return _time_by_component(t, bodies, figure_title(title, what))
+
+
+def _time_by_component(t: np.ndarray, bodies: list[BodySeries], title: str) -> Figure:
+    """time_figure's panel-per-component layout: F_x, F_y, F_z over M_x, M_y, M_z."""
+    from matplotlib.lines import Line2D
+
+    shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies], MAX_LINES)
+    note = _not_shown(bodies, shown, "the CSV")
+    grid = Grid(2, 3, margins=(0.8, 0.3, 1.25, 0.55 + (0.25 if note else 0.0)))
+    fig, axes = new_figure(grid)
+    for i, a in enumerate("xyz"):
+        for row, (symbol, unit, scale, floor) in enumerate(
+            (("F", "N", 1.0, FORCE_FLOOR_N), ("M", "mN m", 1e3, TORQUE_FLOOR_NM * 1e3))
+        ):
+            ax = axes[3 * row + i]
+            series = [
+                (bodies[k].force if row == 0 else bodies[k].torque)[:, i] * scale for k in shown
+            ]
+            for k, y in zip(shown, series, strict=True):
+                _line(ax, t, y, color=f"C{k % 10}", label=bodies[k].name)
+            ax.set_ylim(*value_limits(series, floor))
+            ax.set(title=f"${symbol}_{a}$ [{unit}]" + (" about each CoM" if symbol == "M" else ""))
+            _time_axis(ax, t)
+            if row == 1:
+                ax.set_xlabel("time [s]")
+    handles = [Line2D([], [], color=f"C{k % 10}", label=bodies[k].name) for k in shown]
+    _head(fig, title, handles)
+    if note:
+        _note(fig, note)
+    return fig
+
+
+def position_figure(bodies: list[BodySeries], surface_z: float, title: str | None = None) -> Figure:
+    """RFT force [N] vs the body's ``abscissa`` (CoM depth, or horizontal distance at about
+    constant depth), a panel per body for the MAX_POSITION_PANELS bodies of the largest peak
+    |F|, POSITION_COLUMNS to a row; world frame."""
+    shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies],
+                         MAX_POSITION_PANELS)  # fmt: skip
+    note = _not_shown(bodies, shown, "forces_vs_time.png")
+    cols = max(1, min(len(shown), POSITION_COLUMNS))
+    rows = max(1, -(-len(shown) // cols))
+    bottom = 0.55 + (0.25 if note else 0.0)
+    grid = Grid(rows, cols, panel=(4.3, 2.8), margins=(0.8, 0.3, 1.25, bottom))
+    fig, axes = new_figure(grid, max(1, len(shown)))
+    for ax, k in zip(axes, shown, strict=False):
+        b = bodies[k]
+        x = abscissa(b.com, surface_z)
+        _components(ax, x.values, b.force, "F", FORCE_FLOOR_N, curve=True)
+        ax.set(title=f"{b.name}: force vs {x.name}", xlabel=x.label, ylabel="RFT force [N]")
+    what = "RFT force vs CoM depth (or horizontal distance at constant depth), world frame"
+    _head(fig, figure_title(title, what), _component_handles("F"))
+    if note:
+        _note(fig, note)
+    return fig
+
+
+def paper_figure(
+    t: np.ndarray, bodies: list[BodySeries], surface_z: float, title: str | None = None
+) -> Figure:
+    """Paper-style summary, a 2 x 2 block per body (the MAX_SUMMARY_BODIES of the largest peak
+    |F|, stacked), world frame: (a) RFT force [N] vs the body's ``abscissa`` (CoM depth, or
+    horizontal distance at about constant depth) [cm]; (b) RFT torque about the CoM [mN m] vs
+    the same; (c) force vs time [s]; (d) ``lateral_panel``: F_x, F_y vs F_z, dots coloured by
+    time."""
+    shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies],
+                         MAX_SUMMARY_BODIES)  # fmt: skip
+    note = _not_shown(bodies, shown, "forces_vs_time.png")
+    bottom = 0.55 + (0.25 if note else 0.0)
+    grid = Grid(2 * max(1, len(shown)), 2, panel=(5.0, 3.0), gap=(0.9, 0.8),
+                margins=(0.8, 0.95, 1.25, bottom))  # fmt: skip
+    fig, axes = new_figure(grid)
+    for j, k in enumerate(shown):
+        b = bodies[k]
+        ax_f, ax_m, ax_t, ax_lv = axes[4 * j : 4 * j + 4]
+        x = abscissa(b.com, surface_z)
+        _components(ax_f, x.values, b.force, "F", FORCE_FLOOR_N, curve=True)
+        _components(ax_m, x.values, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3, curve=True)
+        _components(ax_t, t, b.force, "F", FORCE_FLOOR_N)
+        ax_f.set(title=f"{b.name}: force vs {x.name}", xlabel=x.label, ylabel="RFT force [N]")
+        ax_m.set(title=f"{b.name}: torque vs {x.name}", xlabel=x.label)
+        ax_m.set_ylabel("RFT torque about CoM [mN m]")
+        ax_t.set(title=f"{b.name}: force vs time", xlabel="time [s]", ylabel="RFT force [N]")
+        _time_axis(ax_t, t)
+        lateral_panel(fig, ax_lv, t, b.force, f"{b.name}: lateral vs vertical force")
+    _head(fig, figure_title(title, "RFT summary (world frame)"), _component_handles("FM"))
+    if note:
+        _note(fig, note)
+    return fig
+
+
+@_styled
+def plot_run(
+    rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "", title: str | None = None
+) -> list[Path]:
+    """PNG figures of a `mjrft run` recording (``time_figure``, ``position_figure``,
+    ``paper_figure``), each at most MAX_PNG_PX pixels wide and high.
 
     Args:
-      rec: mjrft.simulate.Recording. surface_z: free-surface height [m].
-      path: PNG file (written atomically). title: figure title (default: none).
+      rec: mjrft.app.simulate.Recording. surface_z: free-surface height [m].
+      out_dir: directory; files are '<stem>forces_vs_time.png', '<stem>forces_vs_depth.png' and
+        '<stem>rft_summary.png' (RUN_PNGS).
+      stem: file name prefix. title: first line of every figure's title (e.g. the scene, its
+        material and triangle count), or None.
+    Returns:
+      The paths written, in RUN_PNGS order.
     """
-    from matplotlib.collections import LineCollection
-
-    plt = _pyplot()
-    data = rec.array()
-    col = {c: i for i, c in enumerate(rec.columns)}
-    t = data[:, col["time_s"]]
-    bodies = rec.body_names or []
-    n = max(1, len(bodies))
-    fig, grid = plt.subplots(
-        2 * n,
-        2,
-        figsize=(12, 7.4 * n + (0.4 if title else 0)),
-        squeeze=False,
-        constrained_layout=True,
+    t, bodies = run_series(rec)
+    figures = (
+        time_figure(t, bodies, title),
+        position_figure(bodies, surface_z, title),
+        paper_figure(t, bodies, surface_z, title),
     )
-    axes = grid.reshape(n, 4)
-    colors = {"x": "C0", "y": "C1", "z": "C2"}
-    for j, body in enumerate(bodies):
-        ax_fd, ax_md, ax_ft, ax_lv = axes[j]
-        depth_cm = (surface_z - data[:, col[f"{body}_com_z_m"]]) / CM
-        force = {a: data[:, col[f"{body}_rft_force_{a}_N"]] for a in "xyz"}
-        torque = {a: data[:, col[f"{body}_rft_torque_{a}_Nm"]] * 1e3 for a in "xyz"}
-        for a in "xyz":
-            ax_fd.plot(depth_cm, force[a], color=colors[a], lw=1.0, label=f"$F_{a}$")
-            ax_md.plot(depth_cm, torque[a], color=colors[a], lw=1.0, label=f"$M_{a}$")
-            ax_ft.plot(t, force[a], color=colors[a], lw=1.0, label=f"$F_{a}$")
-        ax_fd.set(xlabel="CoM depth below surface [cm]", ylabel="RFT force [N]")
-        ax_fd.set_title(f"{body}: force vs depth")
-        ax_md.set(xlabel="CoM depth below surface [cm]", ylabel="RFT torque about CoM [mN m]")
-        ax_md.set_title(f"{body}: moment vs depth")
-        ax_ft.set(xlabel="time [s]", ylabel="RFT force [N]")
-        ax_ft.set_title(f"{body}: force vs time")
-        norm = plt.Normalize(t[0], t[-1] if t[-1] > t[0] else t[0] + 1.0)
-        for a, style in (("x", "solid"), ("y", "dashed")):
-            pts = np.column_stack([force["z"], force[a]]).reshape(-1, 1, 2)
-            segs = np.concatenate([pts[:-1], pts[1:]], axis=1)
-            lc = LineCollection(segs, cmap="viridis", norm=norm, linestyles=style, linewidths=1.2)
-            lc.set_array(0.5 * (t[:-1] + t[1:]))
-            ax_lv.add_collection(lc)
-            ax_lv.plot([], [], color="0.3", ls=style, label=f"$F_{a}$")
-        ax_lv.autoscale()
-        ax_lv.set(xlabel="vertical force $F_z$ [N]", ylabel="lateral force [N]")
-        ax_lv.set_title(f"{body}: lateral vs vertical force")
-        fig.colorbar(lc, ax=ax_lv, label="time [s]", pad=0.01)
-        for a in axes[j]:
-            a.grid(alpha=0.3)
-            a.legend(fontsize=8, loc="best")
-    if title:
-        fig.suptitle(title)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=PAPER_DPI)
-    plt.close(fig)
-    return Path(path)
+    out = Path(out_dir)
+    return [save_figure(f, out / f"{stem}{n}") for f, n in zip(figures, RUN_PNGS, strict=True)]
 
 
+@_styled
+def plot_paper(rec, surface_z: float, path: str | os.PathLike, title: str | None = None) -> Path:
+    """The paper-style summary (``paper_figure``) of a run as a PNG, written atomically.
+
+    Args:
+      rec: mjrft.app.simulate.Recording. surface_z: free-surface height [m].
+      path: PNG file. title: first line of the figure's title (default: none).
+    """
+    t, bodies = run_series(rec)
+    return save_figure(paper_figure(t, bodies, surface_z, title), path)
+
+
+# ----------------------------------------------------------------------------------------------
+# Figures of `mjrft demo`.
+
+
+@_styled
+def plot_demo(result: DemoResult, path: str | os.PathLike) -> Path:
+    """Force and moment vs pivot depth, and lateral vs vertical force, of a prescribed demo as
+    one PNG (world frame), written atomically."""
+    fig, (ax_f, ax_m, ax_lv) = new_figure(
+        Grid(1, 3, panel=(4.3, 3.2), margins=(0.8, 0.95, 1.2, 0.6))
+    )
+    depth_cm = result.depth / CM
+    _components(ax_f, depth_cm, result.force, "F", FORCE_FLOOR_N, curve=True)
+    _components(ax_m, depth_cm, result.moment * 1e3, "M", TORQUE_FLOOR_NM * 1e3, curve=True)
+    ax_f.set(xlabel="pivot depth [cm]", ylabel="RFT force [N]", title="force vs depth")
+    ax_m.set(xlabel="pivot depth [cm]", ylabel="RFT moment about pivot [mN m]")
+    ax_m.set_title("moment vs depth")
+    lateral_panel(fig, ax_lv, result.time, result.force, "lateral vs vertical force")
+    title = f"{result.title}\n{result.n_elements} triangles, world frame"
+    _head(fig, title, _component_handles("FM"))
+    return save_figure(fig, path)
+
+
+@_styled
+def plot_time_series(result: DemoResult, path: str | os.PathLike) -> Path:
+    """Force components vs time of a prescribed demo, with the pitch (if any) on a second axis,
+    as a PNG."""
+    from matplotlib.lines import Line2D
+
+    fig, (ax,) = new_figure(Grid(1, 1, panel=(8.5, 3.2), margins=(0.8, 0.8, 1.0, 0.55)))
+    _components(ax, result.time, result.force, "F", FORCE_FLOOR_N)
+    ax.set(xlabel="time [s]", ylabel="RFT force [N] (world frame)")
+    _time_axis(ax, result.time)
+    handles = _component_handles("F")
+    if "pitch" in result.extra:
+        ax2 = ax.twinx()
+        _line(ax2, result.time, np.degrees(result.extra["pitch"]), color="k", ls=":")
+        ax2.set_ylabel("pitch [deg]")
+        handles.append(Line2D([], [], color="k", ls=":", label="pitch"))
+    _head(fig, result.title, handles)
+    return save_figure(fig, path)
+
+
+@_styled
 def plot_rig_vs_prescribed(
     rec, body: str, prescribed: DemoResult, path: str | os.PathLike, title: str
 ) -> Path:
-    """RFT force vs time of a simulated rig against the prescribed-trajectory demo, as a PNG."""
-    plt = _pyplot()
-    data = rec.array()
-    col = {c: i for i, c in enumerate(rec.columns)}
-    t = data[:, col["time_s"]]
-    fig, ax = plt.subplots(figsize=(10, 4.4), constrained_layout=True)
+    """RFT force vs time of a simulated rig (solid) against the prescribed-trajectory demo
+    (dashed), world frame, as a PNG."""
+    t, bodies = run_series(rec)
+    force = next(b.force for b in bodies if b.name == body)
+    fig, (ax,) = new_figure(Grid(1, 1, panel=(8.5, 3.4), margins=(0.8, 0.3, 1.15, 0.55)))
     for i, a in enumerate("xyz"):
-        (line,) = ax.plot(
-            t, data[:, col[f"{body}_rft_force_{a}_N"]], label=f"$F_{a}$ simulated rig"
-        )
-        ax.plot(
-            prescribed.time,
-            prescribed.force[:, i],
-            ls="--",
-            color=line.get_color(),
-            label=f"$F_{a}$ prescribed",
-        )
-    ax.set_xlim(0, t[-1])
-    ax.set(xlabel="time [s]", ylabel="RFT force on the intruder [N] (world frame)", title=title)
-    ax.grid(alpha=0.3)
-    ax.legend(ncol=3, fontsize=8)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
-    return Path(path)
+        color = COMPONENT_STYLE[a][0]
+        _line(ax, t, force[:, i], color=color, label=f"$F_{a}$ simulated rig")
+        _line(ax, prescribed.time, prescribed.force[:, i], color=color, ls="--",
+              label=f"$F_{a}$ prescribed")  # fmt: skip
+    ax.set_ylim(*value_limits([*force.T, *prescribed.force.T], FORCE_FLOOR_N))
+    _time_axis(ax, t)
+    ax.set(xlabel="time [s]", ylabel="RFT force on the intruder [N]")
+    _head(fig, f"{title}\nworld frame", ax.get_lines(), ncol=3)
+    return save_figure(fig, path)

@@ -1,0 +1,151 @@
+"""The figure rules of mjrft.app.report: decimation, axis limits, abscissa, layout and legends.
+
+Synthetic recordings (seeded), checked against plainly written references and against what the
+figures' docstrings promise; no simulation, so the module runs in about a second.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from mjrft.app import report
+from mjrft.app.simulate import Recording
+
+
+def _envelope_reference(v: np.ndarray, n_bins: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per run of ceil(n / n_bins) rows: (min, max) of every column, by a plain loop."""
+    size = -(-len(v) // n_bins)
+    return [
+        (v[s : s + size].min(axis=0), v[s : s + size].max(axis=0)) for s in range(0, len(v), size)
+    ]
+
+
+@pytest.mark.parametrize("n, k, n_bins", [(10_007, 3, 100), (5_000, 1, 7), (2_001, 2, 1000)])
+def test_envelope_indices_keep_every_runs_extremes(n, k, n_bins):
+    rng = np.random.default_rng(3)
+    v = rng.standard_normal((n, k)).cumsum(axis=0)
+    keep = report.envelope_indices(v, n_bins)
+    assert keep[0] == 0 and keep[-1] == n - 1
+    assert np.all(np.diff(keep) > 0)  # sorted, unique
+    assert len(keep) <= 2 * k * n_bins + 2
+    size = -(-n // n_bins)
+    for run, (lo, hi) in enumerate(_envelope_reference(v, n_bins)):
+        picked = v[keep[(keep >= run * size) & (keep < (run + 1) * size)]]
+        np.testing.assert_array_equal(picked.min(axis=0), lo)
+        np.testing.assert_array_equal(picked.max(axis=0), hi)
+
+
+def test_envelope_indices_keep_short_series_whole():
+    np.testing.assert_array_equal(report.envelope_indices(np.arange(20.0), 10), np.arange(20))
+
+
+def test_a_spike_survives_decimation():
+    v = np.zeros(1_000_000)
+    v[123_457] = 5.0  # one sample: a collision's impulse
+    keep = report.envelope_indices(v, report.LINE_BINS)
+    assert 123_457 in keep and len(keep) <= 2 * report.LINE_BINS + 2
+
+
+def test_value_limits_draw_round_off_flat():
+    rng = np.random.default_rng(0)
+    signal = np.linspace(0.5, 1.0, 50)
+    noise = 1e-17 * rng.standard_normal(50)  # a symmetric body's lateral force
+    lo, hi = report.value_limits([signal, noise], report.FORCE_FLOOR_N)
+    m = report.LIMIT_MARGIN
+    # The noise sets no limit, but its flat line at zero is in view: span [0, 1] plus margins.
+    assert lo == pytest.approx(-m) and hi == pytest.approx(1 + m)
+    # Alone, noise below the floor gives the floor's band, not a 1e-17 axis.
+    assert report.value_limits([noise], report.FORCE_FLOOR_N) == (
+        -report.FORCE_FLOOR_N,
+        report.FORCE_FLOOR_N,
+    )
+
+
+def test_value_limits_of_a_constant_and_non_finite_values():
+    lo, hi = report.value_limits([np.array([0.3226, np.nan, 0.3226, np.inf, 0.3226])], 1e-6)
+    m = report.LIMIT_MARGIN
+    assert (lo, hi) == pytest.approx((0.3226 * (1 - m), 0.3226 * (1 + m)))
+
+
+def test_abscissa_is_depth_for_a_drop_and_travel_for_a_drag():
+    n = 100
+    drop = np.column_stack([np.zeros(n), np.zeros(n), np.linspace(0.0, -0.05, n)])
+    x = report.abscissa(drop, surface_z=0.0)
+    assert x.name == "depth"
+    np.testing.assert_allclose(x.values, np.linspace(0.0, 5.0, n))  # cm
+    drag = np.column_stack([np.linspace(0, 0.03, n), np.linspace(0, 0.04, n), np.full(n, -0.02)])
+    drag[:, 2] += 1e-4 * np.sin(np.arange(n))  # 0.2 mm of bobbing: about constant depth
+    x = report.abscissa(drag, surface_z=0.0)
+    assert x.name == "horizontal distance"
+    np.testing.assert_allclose(x.values, np.linspace(0, 5.0, n))  # |(3, 4)| cm at the end
+
+
+def _recording(n_bodies: int, n_rows: int, seed: int = 1) -> Recording:
+    """A recording of `n_bodies` bodies sinking at different rates; F_x is round-off."""
+    rng = np.random.default_rng(seed)
+    names = [f"body{i}" for i in range(n_bodies)]
+    columns = ["time_s"]
+    for b in names:
+        columns += [f"{b}_com_{a}_m" for a in "xyz"]
+        columns += [f"{b}_rft_force_{a}_N" for a in "xyz"]
+        columns += [f"{b}_rft_torque_{a}_Nm" for a in "xyz"]
+    t = np.linspace(0.0, 2.0, n_rows)
+    blocks = [t[:, None]]
+    for i in range(n_bodies):
+        depth = 0.01 * (1 + i) * t
+        com = np.column_stack([0.1 * i + 0 * t, 0 * t, -depth])
+        force = np.column_stack(
+            [1e-17 * rng.standard_normal(n_rows), 0.1 * np.sin(t), (1 + i) * depth * 100]
+        )
+        torque = 1e-3 * rng.standard_normal((n_rows, 3))
+        blocks += [com, force, torque]
+    data = np.column_stack(blocks)
+    return Recording(columns, names, rows=list(data))
+
+
+def test_legend_line_styles_are_those_of_the_lines():
+    rec = _recording(2, 300)
+    t, bodies = report.run_series(rec)
+    fig = report.time_figure(t, bodies, "title")
+    styles = {h.get_label(): h.get_linestyle() for h in fig.legends[0].legend_handles}
+    assert len(styles) == 3
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            component = line.get_label()[-2]  # '$F_y$' -> 'y'
+            (style,) = [s for label, s in styles.items() if f"_{component}$" in label]
+            assert line.get_linestyle() == style, (ax.get_title(), line.get_label())
+    assert styles["$F_y$, $M_y$"] == "--"  # y is the dashed one, and the legend says so
+
+
+def test_round_off_panel_is_flat_and_signal_sets_the_axis():
+    rec = _recording(1, 200)
+    t, bodies = report.run_series(rec)
+    fig = report.time_figure(t, bodies)
+    lo, hi = fig.axes[0].get_ylim()  # body0's force: F_x ~ 1e-17, F_z up to 2 N
+    assert lo < 0 < hi and hi - lo > 1.0
+
+
+def test_figures_of_many_bodies_and_long_runs_stay_bounded(tmp_path):
+    rec = _recording(12, 50_000)
+    paths = report.plot_run(rec, 0.0, tmp_path, title="twelve bodies: glass_beads, 100 triangles")
+    assert [p.name for p in paths] == list(report.RUN_PNGS)
+    for p in paths:
+        w, h = Image.open(p).size
+        assert max(w, h) <= report.MAX_PNG_PX, (p.name, w, h)
+    t, bodies = report.run_series(rec)
+    fig = report.time_figure(t, bodies)
+    lines = [ln for ax in fig.axes for ln in ax.get_lines()]
+    assert len(lines) == 6 * report.MAX_LINES  # six component panels, the largest bodies only
+    assert max(len(ln.get_xdata()) for ln in lines) <= 2 * report.LINE_BINS + 2
+    notes = [x.get_text() for x in fig.texts if "not shown" in x.get_text()]
+    assert notes and "body0" in notes[0]  # the smallest forces are left out, and named
+    assert "body11" in {ln.get_label() for ln in lines}
+
+
+def test_titles_carry_the_run_title():
+    rec = _recording(1, 50)
+    t, bodies = report.run_series(rec)
+    fig = report.paper_figure(t, bodies, 0.0, "sphere_drop.xml: glass_beads, 2976 triangles")
+    assert fig._suptitle.get_text().startswith("sphere_drop.xml: glass_beads, 2976 triangles\n")
