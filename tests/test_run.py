@@ -133,3 +133,80 @@ def test_a_stopped_run_keeps_what_it_computed(tmp_path, how):
     assert f": {status} at t = " in out
     assert (tmp_path / "rft_summary.png").exists()
     assert csv.read_text().endswith("\n")  # the last row is whole
+
+
+def test_recorded_com_velocity_is_mujocos_object_velocity():
+    import mujoco
+
+    from mjrft.field.granular_field import GranularField
+
+    model = simulate.load_model("hexapod_sand")  # a shipped model by name; articulated legs
+    fld = GranularField(model)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    data.qvel[:] = np.random.default_rng(0).normal(size=model.nv)
+    mujoco.mj_forward(model, data)
+    row = simulate.record_row(model, data, fld)
+    vel = np.zeros(6)
+    for j, b in enumerate(fld.body_ids):
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, int(b), vel, 0)
+        name = fld.bodies[j].name
+        got = [row[simulate.new_recording(model, fld).columns.index(f"{name}_vel_{a}_m_per_s")]
+               for a in "xyz"]  # fmt: skip
+        np.testing.assert_allclose(got, vel[3:], rtol=1e-12, atol=1e-14)
+
+
+def test_a_controller_drives_the_actuators_and_bad_controls_are_named():
+    model = simulate.load_model("hexapod_sand")
+    seen = []
+
+    def ctrl(t, data):
+        seen.append(t)
+        return np.full(model.nu, 0.2)
+
+    data, _ = simulate.run(model, 0.01, ctrl=ctrl)
+    assert len(seen) == 10 and seen[0] == 0.0 and np.all(data.ctrl == 0.2)
+    with pytest.raises(ValueError, match=r"returned shape \(2,\).*nu = 6"):
+        simulate.run(model, 0.01, ctrl=lambda t, d: [0.0, 1.0])
+    with pytest.raises(ValueError, match="non-finite control nan for actuator"):
+        simulate.run(model, 0.01, ctrl=lambda t, d: np.full(model.nu, np.nan))
+
+
+def test_keyframes(tmp_path):
+    model = simulate.load_model("hexapod_sand")
+    keyed, _ = simulate.run(model, 0.001)
+    plain, _ = simulate.run(model, 0.001, keyframe=None)
+    assert not np.allclose(keyed.qpos, plain.qpos)  # the keyframe differs from qpos0
+    with pytest.raises(ValueError, match="keyframe 5 does not exist"):
+        simulate.run(model, 0.001, keyframe=5)
+    with pytest.raises(ValueError, match="no shipped model of that name.*sphere_drop"):
+        simulate.load_model("no_such_model")
+
+
+def test_cli_options_reach_the_run_and_run_json(tmp_path, capsys):
+    import json
+
+    ctrl = tmp_path / "my_ctrl.py"
+    ctrl.write_text("def ctrl(t, data):\n    return [0.1] * data.ctrl.shape[0]\n")
+    args = ["run", "hexapod_sand", "--duration", "0.02", "--out", str(tmp_path / "o"),
+            "--triangles", "300", "--material", "poppy_seeds_lp", "--keyframe", "none",
+            "--ctrl", f"{ctrl}:ctrl", "--no-plots"]  # fmt: skip
+    assert cli.main(args) == 0
+    out = capsys.readouterr().out
+    assert "the simulation alone" in out and "in all" in out
+    meta = json.loads((tmp_path / "o" / "run.json").read_text())
+    assert meta["status"] == "completed" and meta["rows"] == 21
+    assert meta["field"]["material"] == "poppy_seeds_lp" and meta["model"]["keyframe"] is None
+    assert meta["options"]["triangles"] == 300 and meta["versions"]["mujoco"]
+    xml = meta["model"]["file"]
+    assert len(meta["model"]["sha256"][xml]) == 64 and len(meta["model"]["sha256"]) >= 2
+    assert not list((tmp_path / "o").glob("*.png"))
+    default = tmp_path / "d"
+    assert cli.main(["run", "hexapod_sand", "--duration", "0.02", "--out", str(default),
+                     "--no-plots"]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert json.loads((default / "run.json").read_text())["field"]["triangles"] != 0
+    assert cli.main([*args[:6], "--ctrl", "os:no_such"]) == 2
+    assert "has no callable 'no_such'" in capsys.readouterr().err
+    assert cli.main([*args[:6], "--keyframe", "walk"]) == 2
+    assert "no keyframe of that name" in capsys.readouterr().err

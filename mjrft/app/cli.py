@@ -16,6 +16,7 @@ from mjrft.app.recording_defaults import (
     DEFAULT_MAX_ARROWS,
     DEFAULT_STRESS_MAX_PA,
 )
+from mjrft.field.signals import HeldSignals
 
 DEFAULT_DEMO_DIR = "mjrft-demo"
 
@@ -34,6 +35,7 @@ def _demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     material = Material.preset(args.material)
     t0 = time.perf_counter()
+    _warm_up()
     results = [
         demos.ellipsoid_pitch(n_triangles=args.triangles, material=material),
         demos.ellipsoid_pitch(n_triangles=args.triangles, material=material, amplitude=0.0),
@@ -165,6 +167,12 @@ def _recorder(args: argparse.Namespace, model, fld):
 #: Files `mjrft run` writes into --out (besides the optional --rrd).
 RUN_CSV = "timeseries.csv"
 RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
+RUN_JSON = "run.json"
+#: Seconds of warm-up after which `mjrft run` says it is compiling (a cache load takes ~1 s).
+WARM_UP_NOTICE_S = 2.0
+#: Cold-start compilation time to announce [s]: 39-57 s measured on 2-core VMs
+#: (benchmarks/RESULTS.md, "Kernel").
+COLD_START_S = "40-60"
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
 
@@ -187,7 +195,7 @@ def _check_outputs(args: argparse.Namespace) -> Path:
         raise ValueError(f"--out folder {str(out)!r} is not writable")
     if args.rrd:
         rrd = Path(args.rrd)
-        ours = {(out / name).resolve() for name in (RUN_CSV, *RUN_PLOTS)}
+        ours = {(out / name).resolve() for name in (RUN_CSV, RUN_JSON, *RUN_PLOTS)}
         if rrd.resolve() in ours:
             raise ValueError(f"--rrd {str(rrd)!r} would overwrite the run's own {rrd.name}")
         if rrd.exists() and not args.overwrite:
@@ -205,33 +213,47 @@ def _on_sigterm(signum, frame) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from mjrft.app import simulate
+    from mjrft.app import metadata, simulate
     from mjrft.field.granular_field import GranularField
 
+    xml = simulate.resolve_model(args.model)
     out = _check_outputs(args)
-    model = simulate.load_model(args.model)
+    ctrl = _load_controller(args.ctrl) if args.ctrl else None
+    model = simulate.load_model(xml)
     simulate.configure(model, args.timestep, args.integrator)
-    fld = GranularField(model, low_speed=args.low_speed, stick_reach=args.stick_reach)
+    keyframe = _keyframe(model, args.keyframe)
+    fld = GranularField(
+        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
+        low_speed=args.low_speed, stick_reach=args.stick_reach,
+    )  # fmt: skip
     columns = simulate.new_recording(model, fld).columns
+    run = _RunInfo(xml, model, fld, keyframe)
+    metadata.write(out / RUN_JSON, run.record(args, "running"))
     # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
     # crash or SIGKILL loses at most the last second.
     sink = simulate.CsvSink(out / RUN_CSV, columns)
     rec = simulate.Recording(columns, [be.name for be in fld.bodies], sink=sink)
     recorder = _recorder(args, model, fld)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    t0 = time.perf_counter()
     status, code = "completed", 0
     try:
-        simulate.run(
-            model,
-            args.duration,
-            fld=fld,
-            record_every=args.record_every,
-            progress=_Progress(f"mjrft run {Path(args.model).name}"),
-            recording=rec,
-            observer=recorder,
-            observe_every=recorder.every if recorder is not None else 1,
-        )
+        run.warm_up = _warm_up()
+        t_sim = time.perf_counter()
+        try:
+            simulate.run(
+                model,
+                args.duration,
+                fld=fld,
+                record_every=args.record_every,
+                progress=_Progress(f"mjrft run {xml.name}"),
+                recording=rec,
+                observer=recorder,
+                observe_every=recorder.every if recorder is not None else 1,
+                keyframe=keyframe,
+                ctrl=ctrl,
+            )
+        finally:
+            run.simulation = time.perf_counter() - t_sim
     except simulate.RunDiverged as exc:
         status, code = "diverged", EXIT_DIVERGED
         print(f"mjrft run: {exc}", file=sys.stderr)
@@ -239,61 +261,175 @@ def _run(args: argparse.Namespace) -> int:
         status, code = "terminated", EXIT_TERMINATED
     except KeyboardInterrupt:
         status, code = "interrupted", EXIT_INTERRUPTED
-    except Exception:
-        status = "failed"
+    except Exception as exc:
+        status, run.error = "failed", f"{type(exc).__name__}: {exc}"
         raise
     finally:
         # Whatever was computed is written, even when the run fails or is interrupted; a second
         # Ctrl-C or a SIGTERM waits until the CSV and the recording are complete.
-        with DeferredSignals():
+        with HeldSignals((signal.SIGINT, signal.SIGTERM)):
             sink.close()
             if recorder is not None:
                 recorder.close()  # completes the .rrd file
         signal.signal(signal.SIGTERM, previous)
-        _write_run_results(args, model, fld, rec, recorder, out, status, t0)
+        _write_run_results(args, run, rec, recorder, out, status)
     return code
 
 
-class DeferredSignals:
-    """Hold SIGINT and SIGTERM over a block (files being completed), then act on them."""
+class _RunInfo:
+    """What `mjrft run` ran and how long its parts took [s], for its summary and run.json."""
 
-    def __enter__(self) -> DeferredSignals:
-        self.pending: list[int] = []
-        self._previous = {
-            sig: signal.signal(sig, lambda signum, frame: self.pending.append(signum))
-            for sig in (signal.SIGINT, signal.SIGTERM)
-        }
-        return self
+    def __init__(self, xml: Path, model, fld, keyframe: int | None) -> None:
+        self.xml, self.model, self.fld, self.keyframe = xml, model, fld, keyframe
+        self.warm_up = self.simulation = self.plots = float("nan")
+        self.error: str | None = None
 
-    def __exit__(self, *exc: object) -> None:
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
-        if self.pending and exc[0] is None:
-            raise Terminated if signal.SIGTERM in self.pending else KeyboardInterrupt
+    def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
+        """The run.json record (``mjrft.app.metadata``)."""
+        from mjrft.app import metadata
+
+        m, f = self.model, self.fld
+        material = f.scene.material
+        return {
+            "status": status,
+            "error": self.error,
+            "command": metadata.command_line(),
+            "options": {k: v for k, v in vars(args).items() if k not in ("func", "started")},
+            "model": {
+                "file": str(self.xml.resolve()),
+                "sha256": metadata.model_files(self.xml),
+                "timestep_s": m.opt.timestep,
+                "integrator": _integrator_name(m),
+                "keyframe": self.keyframe if m.nkey else None,
+                "nbody": m.nbody, "nq": m.nq, "nv": m.nv, "nu": m.nu,
+            },
+            "field": {
+                "material": material.name,
+                "zeta_N_per_m3": material.zeta,
+                "triangles": f.n_elements,
+                "bodies": [be.name for be in f.bodies],
+                "surface_z_m": f.surface_z,
+            },
+            "versions": metadata.versions(),
+            "machine": metadata.machine(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(args.started[1])),
+            **extra,
+        }  # fmt: skip
 
 
-def _write_run_results(args, model, fld, rec, recorder, out: Path, status: str, t0: float) -> None:
-    """Plots from the CSV and the one-line summary of `mjrft run` (also after a failure)."""
-    from mjrft.app import report, simulate
+def _warm_up() -> float:
+    """Compile (or load from numba's cache) the compiled code before the first step, saying so
+    if it takes long (the first run in an environment); returns the seconds it took."""
+    import threading
 
-    if rec.n_rows == 0:
-        return
-    wall = time.perf_counter() - t0
-    t_end = float(rec.last_row[0])
-    plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
-    pngs = report.plot_run(plots, fld.surface_z, out) if rec.body_names else []
+    from mjrft.field.warmup import warm_up
+
+    notice = threading.Timer(
+        WARM_UP_NOTICE_S,
+        lambda: print(
+            "mjrft: compiling the field's numba code for this environment, once: about "
+            f"{COLD_START_S} s on a 2-core machine; later runs load it from numba's cache in "
+            "about a second",
+            file=sys.stderr,
+            flush=True,
+        ),
+    )
+    notice.daemon = True
+    notice.start()
+    try:
+        return warm_up()
+    finally:
+        notice.cancel()
+
+
+def _keyframe(model, text: str | None) -> int | None:
+    """--keyframe as a keyframe index: an index, a keyframe name, or "none" (qpos0)."""
+    if text is None:
+        return 0
+    if text.lower() == "none":
+        return None
+    if text.lstrip("-").isdigit():
+        k = int(text)
+    else:
+        import mujoco
+
+        k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, text)
+        if k < 0:
+            names = [
+                mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, i) for i in range(model.nkey)
+            ]
+            raise ValueError(
+                f"--keyframe {text!r}: no keyframe of that name (the model has {names})"
+            )
+    if not 0 <= k < model.nkey:
+        raise ValueError(f"--keyframe {k}: the model has {model.nkey} keyframe(s)")
+    return k
+
+
+def _load_controller(spec: str):
+    """The controller ``ctrl(t, data)`` named by MODULE:NAME or path/to/file.py:NAME."""
+    import importlib
+    import importlib.util
+
+    module_name, sep, attr = spec.rpartition(":")
+    if not sep or not module_name or not attr:
+        raise ValueError(f"--ctrl {spec!r}: expected MODULE:FUNCTION or path/to/file.py:FUNCTION")
+    try:
+        if module_name.endswith(".py"):
+            path = Path(module_name)
+            if not path.is_file():
+                raise ValueError(f"--ctrl {spec!r}: no file {module_name!r}")
+            loader = importlib.util.spec_from_file_location(path.stem, path)
+            module = importlib.util.module_from_spec(loader)
+            loader.loader.exec_module(module)
+        else:
+            module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"--ctrl {spec!r}: cannot import {module_name!r}: {exc}") from None
+    fn = getattr(module, attr, None)
+    if not callable(fn):
+        raise ValueError(f"--ctrl {spec!r}: {module_name!r} has no callable {attr!r}")
+    return fn
+
+
+def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: str) -> None:
+    """Plots from the CSV, run.json and the summary of `mjrft run` (also after a failure)."""
+    from mjrft.app import metadata, report, simulate
+
+    fld, model = run.fld, run.model
+    t_end = float(rec.last_row[0]) if rec.n_rows else 0.0
+    pngs: list[Path] = []
+    if rec.n_rows and rec.body_names and not args.no_plots:
+        t0 = time.perf_counter()
+        plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
+        title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
+        pngs = report.plot_run(plots, fld.surface_z, out, title=title)
+        run.plots = time.perf_counter() - t0
+    total = time.perf_counter() - args.started[0]
+    outputs = [str(rec.sink.path), *map(str, pngs)]
+    if recorder is not None and recorder.path is not None:
+        outputs.append(str(recorder.path))
+    timing = {"warm_up_s": run.warm_up, "simulation_s": run.simulation, "plots_s": run.plots,
+              "total_s": total}  # fmt: skip
+    metadata.write(
+        out / RUN_JSON,
+        run.record(args, status, simulated_s=t_end, rows=rec.n_rows, outputs=outputs,
+                   timing={k: v for k, v in timing.items() if v == v}),
+    )  # fmt: skip
+    sim = run.simulation
+    rate = f"{t_end / sim:.2f}x real time" if sim == sim and sim > 0 else "no steps"
     print(
-        f"mjrft run {Path(args.model).name}: {status} at t = {t_end:.4g} s, "
-        f"{rec.n_rows} rows, {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
-        f"{_integrator_name(model)}, {wall:.1f} s wall ({t_end / max(wall, 1e-9):.2f}x "
-        f"real time); wrote {rec.sink.path} and {len(pngs)} plots"
+        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rec.n_rows} rows, "
+        f"{fld.n_elements} triangles, dt = {model.opt.timestep:g} s, {_integrator_name(model)}; "
+        f"simulation {sim:.2f} s wall ({rate}, the simulation alone), {total:.1f} s in all; "
+        f"wrote {rec.sink.path}, {RUN_JSON} and {len(pngs)} plots"
     )
     if recorder is not None and recorder.path is not None and recorder.path.exists():
         size_mb = recorder.path.stat().st_size / 1e6
         print(
             f"  recording: {recorder.path} ({size_mb:.1f} MB, {recorder.frames} frames, one per "
-            f"{recorder.every} steps, arrows {recorder.arrow_scale:.3g} m/N); open it with "
-            f"`rerun {recorder.path}`"
+            f"{recorder.every} steps, arrows {recorder.arrow_scale_text}); open it with "
+            f"`mjrft view-recording {recorder.path}`"
         )
 
 
@@ -323,7 +459,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     _add_demo(sub)
     _add_run(sub)
+    _add_view(sub)
+    _add_view_model(sub)
     return p
+
+
+_MODEL_HELP = (
+    "MJCF model file, or the name of a shipped model (ellipsoid_pitch, hexapod_sand, plate_rig, "
+    "root_circumnutation, sphere_drop)"
+)
 
 
 def _add_demo(sub) -> None:
@@ -338,7 +482,7 @@ def _add_demo(sub) -> None:
             "then simulate the rigs that produce those motions in MuJoCo with the granular field "
             "(models/ellipsoid_pitch.xml, 12 s; models/root_circumnutation.xml, one 24 s turn). "
             "Writes CSV files (SI units, world frame), PNG plots, and demo.rrd: a rerun "
-            "recording of the ellipsoid rig's run (open it with `rerun demo.rrd`)."
+            "recording of the ellipsoid rig's run (open it with `mjrft view-recording demo.rrd`)."
         ),
     )
     d.add_argument(
@@ -368,9 +512,11 @@ def _add_run(sub) -> None:
         "run",
         help="simulate an MJCF scene with granular forces and write a time series",
         description=(
-            "Simulate MODEL.xml with the granular RFT field installed (the medium, material and "
-            "intruding geoms come from the model's <custom> section; see docs/mjcf.md). Starts "
-            "from keyframe 0 if the model has one. Writes DIR/timeseries.csv (time; per intruding "
+            "Simulate MODEL with the granular RFT field installed (the medium, material and "
+            "intruding geoms come from the model's <custom> section; see docs/mjcf.md; the "
+            "options below override them). Starts from keyframe 0 if the model has one. Writes "
+            "DIR/run.json (versions, machine, options, model hashes, timings, outcome), "
+            "DIR/timeseries.csv (time; per intruding "
             "body: CoM position and linear velocity, RFT force and torque about the CoM, all in "
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
             "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
@@ -380,38 +526,16 @@ def _add_run(sub) -> None:
             "the rows before are kept), 130 interrupted, 143 terminated."
         ),
     )
-    r.add_argument("model", metavar="MODEL.xml", help="MJCF model file")
+    r.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
     r.add_argument(
         "--duration", type=_positive_float, required=True, help="simulated time in seconds"
     )
     r.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    _add_scene_options(r)
     r.add_argument(
-        "--timestep",
-        type=_positive_float,
-        default=None,
-        metavar="DT",
-        help="override the model's timestep in seconds (default: the model's <option timestep>)",
-    )
-    r.add_argument(
-        "--integrator",
-        choices=["euler", "rk4", "implicit", "implicitfast"],
-        default=None,
-        help="override the model's integrator (default: the model's <option integrator>)",
-    )
-    r.add_argument(
-        "--low-speed",
-        choices=["stick", "off"],
-        default=None,
-        help="low-speed treatment of free bodies (docs/stability.md): stick holds bodies at "
-        "rest like static friction, off is the pure model (default: the model's "
-        "mjrft:low_speed, else stick)",
-    )
-    r.add_argument(
-        "--stick-reach",
-        type=_positive_float,
-        default=None,
-        metavar="R",
-        help="the treatment's reach (default: the model's mjrft:stick_reach, else 4)",
+        "--no-plots",
+        action="store_true",
+        help="write no PNG plots (the CSV, run.json and any recording are still written)",
     )
     r.add_argument(
         "--record-every",
@@ -429,6 +553,145 @@ def _add_run(sub) -> None:
     r.set_defaults(func=_run)
 
 
+def _add_view(sub) -> None:
+    """The ``mjrft view-recording`` subcommand (mjrft.app.view; it does not import rerun)."""
+    from mjrft.app import view
+
+    view.add_parser(sub)
+
+
+def _add_view_model(sub) -> None:
+    """The ``mjrft view`` subcommand: MuJoCo's interactive viewer with the field installed."""
+    from mjrft.app.mujoco_viewer import DEFAULT_FORCE_SCALE
+
+    v = sub.add_parser(
+        "view",
+        help="open MODEL in MuJoCo's interactive viewer with the granular field installed",
+        description=(
+            "Simulate MODEL in real time in MuJoCo's interactive viewer (mujoco.viewer) with the "
+            "granular RFT field installed, drawing each intruding body's RFT force as an orange "
+            "arrow from its CoM (and with --triangle-arrows the per-triangle forces in blue). "
+            "Needs a display; on a headless machine record with `mjrft run --rrd` instead."
+        ),
+    )
+    v.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
+    v.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="close after this many simulated seconds (default: when the window is closed)",
+    )
+    v.add_argument(
+        "--force-scale",
+        type=_positive_float,
+        default=DEFAULT_FORCE_SCALE,
+        metavar="M_PER_N",
+        help=f"arrow length per newton [m/N] (default: {DEFAULT_FORCE_SCALE:g})",
+    )
+    v.add_argument(
+        "--triangle-arrows",
+        action="store_true",
+        help="also draw per-triangle force arrows (at most 200 per body; slower)",
+    )
+    _add_scene_options(v)
+    v.set_defaults(func=_view)
+
+
+def _view(args: argparse.Namespace) -> int:
+    from mjrft.app import mujoco_viewer, simulate
+    from mjrft.field.granular_field import GranularField
+
+    if not mujoco_viewer.has_display():
+        raise ValueError(
+            "no display (DISPLAY and WAYLAND_DISPLAY are unset): record the run instead, e.g. "
+            f"mjrft run {args.model} --duration 10 --out run --rrd run/run.rrd"
+        )
+    ctrl = _load_controller(args.ctrl) if args.ctrl else None
+    model = simulate.load_model(args.model)
+    simulate.configure(model, args.timestep, args.integrator)
+    keyframe = _keyframe(model, args.keyframe)
+    fld = GranularField(
+        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
+        low_speed=args.low_speed, stick_reach=args.stick_reach,
+    )  # fmt: skip
+    data = simulate.reset_data(model, keyframe)
+    _warm_up()
+    mujoco_viewer.launch(model, fld, data=data, ctrl=ctrl, force_scale=args.force_scale,
+                  triangles=args.triangle_arrows, duration=args.duration)  # fmt: skip
+    return 0
+
+
+def _add_scene_options(r) -> None:
+    """Options of ``mjrft run`` and ``mjrft view`` that override the model and its scene."""
+    r.add_argument(
+        "--timestep",
+        type=_positive_float,
+        default=None,
+        metavar="DT",
+        help="override the model's timestep in seconds (default: the model's <option timestep>)",
+    )
+    r.add_argument(
+        "--integrator",
+        choices=["euler", "rk4", "implicit", "implicitfast"],
+        default=None,
+        help="override the model's integrator (default: the model's <option integrator>)",
+    )
+    r.add_argument(
+        "--material",
+        default=None,
+        metavar="NAME",
+        help="override the model's mjrft:material with a preset (glass_beads, poppy_seeds_lp, "
+        "poppy_seeds_cp, generic_1ncm3)",
+    )
+    mesh = r.add_mutually_exclusive_group()
+    mesh.add_argument(
+        "--triangles",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="surface triangles per primitive intruder geom (meshes keep their own): more is more "
+        "accurate and slower (default: the model's mjrft:n_triangles or mjrft:tolerance)",
+    )
+    mesh.add_argument(
+        "--tolerance",
+        type=_positive_float,
+        default=None,
+        metavar="TOL",
+        help="relative RMS force error per primitive geom in (0, 1), e.g. 0.02; sets its triangle "
+        "count (docs/accuracy.md)",
+    )
+    r.add_argument(
+        "--keyframe",
+        default=None,
+        metavar="K",
+        help="start from keyframe K (an index or a name), or 'none' for the model's qpos0 "
+        "(default: keyframe 0 if the model has one)",
+    )
+    r.add_argument(
+        "--ctrl",
+        default=None,
+        metavar="MODULE:FUNCTION",
+        help="a controller ctrl(t, data) called before every step, returning the nu actuator "
+        "controls (or None after writing data.ctrl): an importable module or a path/to/file.py, "
+        "then ':' and the function's name",
+    )
+    r.add_argument(
+        "--low-speed",
+        choices=["stick", "off"],
+        default=None,
+        help="low-speed treatment of free bodies (docs/stability.md): stick holds bodies at "
+        "rest like static friction, off is the pure model (default: the model's "
+        "mjrft:low_speed, else stick)",
+    )
+    r.add_argument(
+        "--stick-reach",
+        type=_positive_float,
+        default=None,
+        metavar="R",
+        help="the treatment's reach (default: the model's mjrft:stick_reach, else 4)",
+    )
+
+
 def _add_recording_options(r) -> None:
     """``mjrft run``'s rerun recording options."""
     g = r.add_argument_group(
@@ -437,7 +700,8 @@ def _add_recording_options(r) -> None:
         "meshes and poses, the medium's surface and region, per-triangle RFT force arrows and "
         "stress colours, per-body RFT force/torque and every sensor as time series. Headless: "
         "nothing is displayed and no port is opened unless --spawn or --connect is given. The "
-        "file is complete even if the run fails or is interrupted. Open it with `rerun FILE`.",
+        "file is complete even if the run fails or is interrupted. Open it with "
+        "`mjrft view-recording FILE` (a browser route on headless machines: docs/recording.md).",
     )
     g.add_argument("--rrd", metavar="FILE", default=None, help="write a rerun recording to FILE")
     g.add_argument(
@@ -461,8 +725,8 @@ def _add_recording_options(r) -> None:
         type=_positive_float,
         default=None,
         metavar="M_PER_N",
-        help="arrow length per newton of triangle force, in m/N (default: automatic, a 1 cm "
-        "arrow for a triangle of median area at the top of the stress colour scale)",
+        help="arrow length per newton of triangle force, in m/N, for every frame (default: "
+        "automatic per body and frame, the longest arrow 30%% of the body's size)",
     )
     g.add_argument(
         "--stress-max",
@@ -510,7 +774,9 @@ def _nonnegative_int(text: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``mjrft`` command."""
+    started = (time.perf_counter(), time.time())
     args = build_parser().parse_args(argv)
+    args.started = started
     try:
         return args.func(args)
     except ValueError as exc:

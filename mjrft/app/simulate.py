@@ -23,6 +23,8 @@ INTEGRATORS = {
     "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
+#: A controller: ``ctrl(t, data)`` -> (nu,) controls, or None if it wrote ``data.ctrl`` itself.
+Controller = Callable[[float, mujoco.MjData], "np.ndarray | None"]
 
 
 def models_dir() -> Path:
@@ -32,8 +34,24 @@ def models_dir() -> Path:
     return Path(mjrft_models.__file__).parent
 
 
-def load_model(path: str) -> mujoco.MjModel:
-    """Compile an MJCF file, with an error that names the file."""
+def resolve_model(name: str | os.PathLike) -> Path:
+    """An MJCF path, or the shipped model of that name (``ellipsoid_pitch`` or
+    ``ellipsoid_pitch.xml`` from ``models_dir()``) when no such file exists."""
+    path = Path(name)
+    if path.exists():
+        return path
+    stem = path.name[: -len(".xml")] if path.name.endswith(".xml") else path.name
+    shipped = models_dir() / f"{stem}.xml"
+    if path.parent == Path(".") and shipped.exists():
+        return shipped
+    names = ", ".join(sorted(p.stem for p in models_dir().glob("*.xml")))
+    raise ValueError(f"no MJCF file {str(name)!r} and no shipped model of that name ({names})")
+
+
+def load_model(path: str | os.PathLike) -> mujoco.MjModel:
+    """Compile an MJCF file (or a shipped model by name, ``resolve_model``), with an error that
+    names the file."""
+    path = resolve_model(path)
     try:
         return mujoco.MjModel.from_xml_path(str(path))
     except (ValueError, FileNotFoundError) as exc:
@@ -221,14 +239,20 @@ def record_row(
     that state if already known.
     """
     w = fld.wrench(data) if wrench is None else wrench
-    parts = [np.array([data.time if time is None else time])]
-    vel = np.zeros(6)
-    for b in fld.body_ids:
-        # Linear velocity of the CoM in the world frame: [rot; lin] at xipos, world orientation.
-        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, int(b), vel, 0)
-        parts += [data.xipos[b], vel[3:].copy(), w[b]]
-    parts.append(np.array(data.sensordata))
-    return np.concatenate(parts)
+    ids = fld.body_ids
+    # Linear velocity of each CoM in the world frame: cvel is (angular, linear) at the c-frame
+    # origin, the subtree CoM of the body's root (mj_objectVelocity's transform, vectorised).
+    cvel = data.cvel[ids]
+    arm = data.xipos[ids] - data.subtree_com[model.body_rootid[ids]]
+    per_body = np.empty((len(ids), 12))  # column order: CoM, its velocity, wrench
+    per_body[:, :3] = data.xipos[ids]
+    wx, wy, wz = cvel[:, 0], cvel[:, 1], cvel[:, 2]  # omega x arm, written out (np.cross: 10 us)
+    per_body[:, 3] = cvel[:, 3] + wy * arm[:, 2] - wz * arm[:, 1]
+    per_body[:, 4] = cvel[:, 4] + wz * arm[:, 0] - wx * arm[:, 2]
+    per_body[:, 5] = cvel[:, 5] + wx * arm[:, 1] - wy * arm[:, 0]
+    per_body[:, 6:] = w[ids]
+    t = data.time if time is None else time
+    return np.concatenate([[t], per_body.ravel(), data.sensordata])
 
 
 def _diverging_count(warnings: np.ndarray) -> int:
@@ -252,8 +276,10 @@ def run(
     recording: Recording | None = None,
     observer: Callable[[int, float, mujoco.MjData], None] | None = None,
     observe_every: int = 1,
+    keyframe: int | None = 0,
+    ctrl: Controller | None = None,
 ) -> tuple[mujoco.MjData, Recording]:
-    """Simulate `duration` seconds from keyframe 0 (if any) with the field installed.
+    """Simulate `duration` seconds from a keyframe with the field installed.
 
     Args:
       model: compiled model (timestep/integrator already configured).
@@ -269,6 +295,10 @@ def run(
         the step that integrated from it, so ``data.qpos`` is already the next state; for RK4
         after an ``mj_forward`` at it). The field's wrench of that state acted in the step.
       observe_every: observer period in steps (>= 1).
+      keyframe: index of the keyframe to start from; the default 0 starts from keyframe 0 if
+        the model has one, else from qpos0; None always starts from qpos0.
+      ctrl: a controller ``ctrl(t, data)`` called before every step with the MuJoCo time t [s]:
+        it returns the (nu,) actuator controls, or None after writing ``data.ctrl`` itself.
     Returns:
       (final MjData, Recording).
     Raises:
@@ -283,9 +313,8 @@ def run(
         raise ValueError(f"observe_every must be >= 1, got {observe_every}")
     fld = fld or GranularField(model)
     rec = recording or new_recording(model, fld)
-    data = mujoco.MjData(model)
-    if model.nkey > 0:
-        mujoco.mj_resetDataKeyframe(model, data, 0)
+    data = reset_data(model, keyframe)
+    apply_ctrl = checked_controller(model, ctrl)
     n_steps = max(1, round(duration / model.opt.timestep))
     tick = max(1, n_steps // 100)
     # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
@@ -306,6 +335,8 @@ def run(
                     rec.append(record_row(model, data, fld, wrench))
                 if observe:
                     observer(i, t_prev, data)
+            if apply_ctrl is not None:
+                apply_ctrl(data)
             mujoco.mj_step(model, data)
             if _diverging_count(warnings) != diverged:
                 raise _divergence(data, i, t_prev, model.opt.timestep)
@@ -320,3 +351,51 @@ def run(
         if observer is not None:
             observer(n_steps, data.time, data)
     return data, rec
+
+
+def reset_data(model: mujoco.MjModel, keyframe: int | None = 0) -> mujoco.MjData:
+    """A new MjData at keyframe `keyframe` (0: keyframe 0 if the model has keyframes, else
+    qpos0; None: qpos0)."""
+    data = mujoco.MjData(model)
+    if keyframe is None or (keyframe == 0 and model.nkey == 0):
+        return data
+    if not 0 <= keyframe < model.nkey:
+        raise ValueError(
+            f"keyframe {keyframe} does not exist: the model has {model.nkey} keyframe(s)"
+            + (f", 0-{model.nkey - 1}" if model.nkey else "")
+        )
+    mujoco.mj_resetDataKeyframe(model, data, keyframe)
+    return data
+
+
+def checked_controller(
+    model: mujoco.MjModel, ctrl: Controller | None
+) -> Callable[[mujoco.MjData], None] | None:
+    """A per-step function writing ctrl(t, data)'s controls into data, checked, or None."""
+    if ctrl is None:
+        return None
+    if not callable(ctrl):
+        raise TypeError(f"ctrl must be a callable ctrl(t, data), got {type(ctrl).__name__}")
+    name = getattr(ctrl, "__qualname__", repr(ctrl))
+
+    def apply(data: mujoco.MjData) -> None:
+        u = ctrl(data.time, data)
+        if u is None:
+            u = data.ctrl
+        else:
+            u = np.asarray(u, dtype=np.float64)
+            if u.shape != (model.nu,) and not (model.nu == 1 and u.shape == ()):
+                raise ValueError(
+                    f"controller {name} returned shape {u.shape} at t = {data.time:g} s; the "
+                    f"model has nu = {model.nu} actuators, expected ({model.nu},) or None"
+                )
+            data.ctrl[:] = u
+        if not np.all(np.isfinite(u)):
+            i = int(np.flatnonzero(~np.isfinite(np.atleast_1d(u)))[0])
+            act = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"#{i}"
+            raise ValueError(
+                f"controller {name} gave a non-finite control {np.atleast_1d(u)[i]} for "
+                f"actuator {act} at t = {data.time:g} s"
+            )
+
+    return apply

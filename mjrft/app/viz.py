@@ -4,29 +4,43 @@ A leaf module (only the CLI imports it; importing ``mjrft`` never imports rerun)
 :class:`Recorder` owns its own ``rerun.RecordingStream`` (never rerun's global one), writes to an
 ``.rrd`` file, and opens no port and spawns no viewer unless asked (``spawn=True`` /
 ``connect=URL``). Use it as a context manager or call :meth:`Recorder.close` in a ``finally``:
-closing flushes and finalises the file, so a run that raises or is interrupted (Ctrl-C) still
-leaves a complete, readable recording of every frame logged before.
+closing sends what is buffered, flushes and finalises the file, so a run that raises or is
+interrupted (Ctrl-C) still leaves a complete, readable recording of every frame whose logging
+completed, and of no other.
 
 What one frame holds (entity paths; ``<body>`` is the MuJoCo body name, escaped for rerun):
 
 * ``world/bodies/<body>`` - Transform3D: the body frame's pose (``xpos``, ``xmat``) in the world.
 * ``world/bodies/<body>/rft_mesh`` - intruding bodies: the RFT surface triangles as a Mesh3D in
-  the body frame (static, each triangle with its own three vertices), and per frame the vertex
-  colours: each triangle coloured by its RFT stress |F| / dA on the fixed scale 0 ...
-  ``stress_max`` [Pa] (viridis; above the scale clipped to yellow), grey where no force acts.
+  the body frame (positions and normals static, each triangle with its own three vertices), and
+  temporal vertex colours: each triangle coloured by its RFT stress |F| / dA on the fixed scale
+  0 ... ``stress_max`` [Pa] (viridis; above the scale clipped to yellow), grey where no force
+  acts. The grey of the first frame is logged at that frame.
 * ``world/bodies/<body>/geoms`` - the body's other geoms as coarse static meshes (body frame).
-* ``world/forces/<body>`` - Arrows3D in the world frame: origin = triangle centroid [m], vector =
-  RFT force on the triangle [N] times ``arrow_scale`` [m/N]; at most ``max_arrows`` per body (an
-  even stride through the acting triangles), coloured like the mesh. Component
-  ``element_index`` gives each arrow's triangle index in ``field.bodies[i]`` order.
+* ``world/forces/<body>`` - Arrows3D in the world frame, one per triangle that feels a force (at
+  most ``max_arrows`` per body: an even stride through them), coloured like the mesh: vector =
+  RFT force on the triangle [N] times the frame's arrow scale [m/N], drawn so that its tip is the
+  triangle's centroid (the arrow lies in the medium and pushes on the surface). Components
+  ``element_index`` (each arrow's triangle index in ``field.bodies[i]`` order) and
+  ``arrow_scale`` (the frame's scale [m/N]). The automatic scale makes the frame's longest
+  arrow ``AUTO_ARROW_FRACTION`` of the body's size (the longest side of its RFT mesh's bounding
+  box); a fixed ``arrow_scale`` holds for every frame.
 * ``rft/<body>/force/{x,y,z}`` [N] and ``rft/<body>/torque/{x,y,z}`` [N m]: Scalars, the body's
   RFT force and torque about its CoM (world frame), the sums over all its triangles.
 * ``sensors/<name>`` (1-D sensors) or ``sensors/<name>/<i>``: every MJCF sensor, as in the CSV.
 
-Static: ``world`` (z up), ``world/surface`` (the free surface z = ``surface_z``, over the medium's
-region or around the bodies), ``world/region`` (the medium's box, if the MJCF sets one) and
-``info`` (this legend with the run's scales). Timelines: ``step`` (sequence: number of steps taken
-before the logged state) and ``sim_time`` (duration: MuJoCo time of the logged state).
+Static (what never changes): ``world`` (z up), ``world/surface`` (the free surface z =
+``surface_z``, translucent, over the medium's region or around the bodies), ``world/region`` (the
+medium's box, if the MJCF sets one), the meshes' positions, normals and triangles, the series'
+names and colours, and ``info`` (this legend with the run's scales). Everything that changes is
+temporal, so rerun shows each frame's value (static data of a component would hide every
+temporal value of it on that entity). Timelines: ``step`` (sequence: number of steps taken before
+the logged state) and ``sim_time`` (duration: MuJoCo time of the logged state).
+
+The default blueprint (sent with the first frame) opens a 3D view framed on the intruders at the
+first frame, seen from the front (-y) and from just below the free surface (``CAMERA_DIRECTION``),
+next to a force and a torque panel per intruding body (tabs if there are several) and a panel of
+the MJCF sensors; the legend is a tab beside the 3D view, the side panels start collapsed.
 
 Which state a frame shows: the state the step integrated from (for Euler and the implicit
 integrators, the derived quantities MuJoCo leaves after ``mj_step`` describe the pre-step state:
@@ -43,6 +57,7 @@ import shutil
 import sys
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -60,22 +75,33 @@ from mjrft.app.recording_defaults import (
 )
 from mjrft.core import geometry
 from mjrft.field.granular_field import GranularField
+from mjrft.field.signals import HeldSignals
 
-#: Poses and scalars are sent as columns every this many frames (and when the recorder closes).
+#: Frames are buffered and sent every this many frames (and when the recorder closes).
 FLUSH_FRAMES = 100
-#: With the automatic arrow scale, a triangle of median area at ``stress_max`` gets this length [m].
-AUTO_ARROW_LENGTH_M = 0.01
-#: Arrow shaft radius as a fraction of the median triangle's edge length sqrt(dA).
-ARROW_RADIUS_PER_EDGE = 0.12
+#: With the automatic arrow scale, the longest arrow of a frame is this fraction of the body's
+#: size (the longest side of its RFT mesh's bounding box, body frame).
+AUTO_ARROW_FRACTION = 0.3
+#: Arrow shaft radius as a fraction of the body's size.
+ARROW_RADIUS_PER_SIZE = 0.004
 #: Target triangle count of each non-intruding primitive geom drawn (coarse: shape only).
 OTHER_GEOM_TRIANGLES = 200
 #: Colour of triangles on which no RFT force acts (RGB, 0-255).
 NO_FORCE_RGB = (170, 170, 170)
-#: Colour of the free surface (RGBA; translucent sand) and of the region box.
-SURFACE_RGBA = (222, 194, 140, 110)
+#: Colour of the free surface (RGBA; translucent sand, so that what is behind it stays visible)
+#: and of the region box.
+SURFACE_RGBA = (222, 194, 140, 60)
 REGION_RGBA = (150, 120, 70, 255)
 #: Half size of the drawn surface when the MJCF sets no region: model extent times this [-].
 SURFACE_EXTENT_FACTOR = 0.5
+#: Default camera: distance from the look target in diagonals of the intruders' bounding box,
+#: and the direction from the target to the eye (world frame): from the front (-y, the pitch
+#: plane of the rigs faces it), a little to the right and a little below the target, so that the
+#: parts in the medium are seen directly, not through the translucent surface (which tints them).
+CAMERA_DISTANCE_PER_DIAGONAL = 2.5
+CAMERA_DIRECTION = (0.45, -1.0, -0.15)
+#: Colours of the x, y, z series of the force and torque panels (RGB, rerun's axis colours).
+AXIS_RGB = {"x": (225, 70, 70), "y": (60, 170, 70), "z": (60, 110, 230)}
 
 # Viridis, sampled at 0, 1/8, ..., 1 (RGB, 0-255); linear interpolation between samples.
 _VIRIDIS = np.array(
@@ -186,6 +212,20 @@ def _viewer_executable() -> str | None:
     return str(beside) if beside.exists() else None
 
 
+@dataclass(frozen=True)
+class _Frame:
+    """One frame as logged: everything a flush sends (built whole, then appended at once)."""
+
+    step: int
+    time: float
+    xpos: np.ndarray  # (drawn, 3)
+    xmat: np.ndarray  # (drawn, 9)
+    scalars: np.ndarray  # (scalar paths,)
+    # per intruder whose appearance is logged at this frame: (k in fld.bodies, vertex colours
+    # (3 n_tri,), element_index, origins, vectors, arrow scale [m/N] or None without arrows)
+    looks: tuple[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float | None], ...]
+
+
 class Recorder:
     """Logs frames of a MuJoCo run with a GranularField to a rerun recording (headless).
 
@@ -196,8 +236,8 @@ class Recorder:
       every: log a frame every this many steps (used by :func:`record` / ``simulate.run``);
         None: ``DEFAULT_FRAME_PERIOD_S`` of simulated time, round(0.01 s / timestep) steps.
       max_arrows: maximum force arrows per body and frame (0: no arrows).
-      arrow_scale: arrow length per newton [m/N]; None: automatic, so that a triangle of the
-        body's median area at ``stress_max`` gets ``AUTO_ARROW_LENGTH_M`` (1 cm).
+      arrow_scale: arrow length per newton [m/N] for every frame; None: automatic, per body and
+        frame, so that the frame's longest arrow is ``AUTO_ARROW_FRACTION`` of the body's size.
       stress_max: top of the triangle colour scale [Pa].
       spawn: also start a rerun viewer and stream to it (opens a local port).
       connect: also stream to a running viewer at this gRPC URL (e.g. ``DEFAULT_CONNECT_URL``).
@@ -236,27 +276,28 @@ class Recorder:
         self.model, self.fld = model, fld
         self.path = None if path is None else Path(path)
         self.every, self.max_arrows, self.stress_max = int(every), int(max_arrows), stress_max
-        self.frames = 0
-        median_area = float(np.median(np.concatenate([be.areas for be in fld.bodies])))
-        self.arrow_scale = (
-            AUTO_ARROW_LENGTH_M / (stress_max * median_area) if arrow_scale is None else arrow_scale
-        )
-        self.arrow_radius = ARROW_RADIUS_PER_EDGE * math.sqrt(median_area)
+        self.fixed_arrow_scale = None if arrow_scale is None else float(arrow_scale)
+        self._last_arrow_scale = math.nan
         self._names = {b: _part(_body_name(model, b)) for b in range(1, model.nbody)}
         self._other = self._other_geom_meshes() if other_geoms else {}
         self._intruders = [be.body for be in fld.bodies]
         self._drawn = sorted(set(self._intruders) | set(self._other))
+        # Body-frame vertices of each intruder's RFT mesh: its size and the camera framing.
+        self._vertices = [np.asarray(fld.body_element_set(b).vertices) for b in self._intruders]
+        self.body_sizes = np.array([float(np.ptp(v, axis=0).max()) for v in self._vertices])
+        self.arrow_radii = ARROW_RADIUS_PER_SIZE * self.body_sizes
         self._scalar_paths = [
             f"rft/{self._names[be.body]}/{q}/{a}"
             for be in fld.bodies
             for q in ("force", "torque")
             for a in "xyz"
         ] + sensor_entities(model)
-        self._active = {be.body: False for be in fld.bodies}
-        self._steps: list[int] = []
-        self._times: list[float] = []
-        self._poses: list[tuple[np.ndarray, np.ndarray]] = []
-        self._scalars: list[np.ndarray] = []
+        # Per intruder, what its entities show now: None (nothing logged yet), False (grey, no
+        # arrows) or True (stress colours and arrows).
+        self._shown: list[bool | None] = [None] * len(fld.bodies)
+        self._buffer: list[_Frame] = []
+        self._sent = 0
+        self._blueprint_sent = False
         self._closed = False
 
         self.rec = rr.RecordingStream(application_id, recording_id=recording_id)
@@ -274,12 +315,32 @@ class Recorder:
         if connect:
             if not spawn or connect != DEFAULT_CONNECT_URL:
                 sinks.append(rr.GrpcSink(connect))
-        self.rec.set_sinks(*sinks, default_blueprint=self._blueprint())
+        self.rec.set_sinks(*sinks)
         try:
             self._log_static()
         except BaseException:
             self.close()
             raise
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def frames(self) -> int:
+        """Number of frames whose logging completed (sent or buffered)."""
+        return self._sent + len(self._buffer)
+
+    @property
+    def arrow_scale(self) -> float:
+        """The fixed arrow scale [m/N]; automatic: the latest frame's (NaN before any arrow)."""
+        if self.fixed_arrow_scale is not None:
+            return self.fixed_arrow_scale
+        return self._last_arrow_scale
+
+    @property
+    def arrow_scale_text(self) -> str:
+        """The arrow scale in words, for summaries (``"0.25 m/N"`` or the automatic rule)."""
+        if self.fixed_arrow_scale is not None:
+            return f"{self.fixed_arrow_scale:.4g} m/N"
+        return f"automatic, longest arrow {AUTO_ARROW_FRACTION:.0%} of the body's size"
 
     # ------------------------------------------------------------------ static content
     def _other_geom_meshes(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -308,19 +369,85 @@ class Recorder:
             )
         return out
 
-    def _blueprint(self) -> rrb.Blueprint:
+    def _eye(self, xpos: np.ndarray | None, xmat: np.ndarray | None) -> rrb.EyeControls3D:
+        """Default camera framed on the intruders at the given poses ((nbody, 3), (nbody, 9);
+        None: the model's reference pose), looking from ``CAMERA_DIRECTION``."""
+        if xpos is None or xmat is None:
+            data = mujoco.MjData(self.model)
+            if self.model.nkey > 0:  # simulate.run starts from keyframe 0
+                mujoco.mj_resetDataKeyframe(self.model, data, 0)
+            mujoco.mj_kinematics(self.model, data)
+            xpos, xmat = data.xpos, data.xmat
+        pts = np.concatenate(
+            [
+                v @ xmat[b].reshape(3, 3).T + xpos[b]
+                for b, v in zip(self._intruders, self._vertices, strict=True)
+            ]
+        )
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        target = 0.5 * (lo + hi)
+        # Bodies that start above the medium are watched where they enter it.
+        target[2] = min(target[2], self.fld.surface_z)
+        direction = np.asarray(CAMERA_DIRECTION, dtype=np.float64)
+        distance = CAMERA_DISTANCE_PER_DIAGONAL * float(np.linalg.norm(hi - lo))
+        eye = target + distance * direction / np.linalg.norm(direction)
+        return rrb.EyeControls3D(
+            kind=rrb.Eye3DKind.Orbital, position=eye, look_target=target, eye_up=(0.0, 0.0, 1.0)
+        )
+
+    def _blueprint(
+        self, xpos: np.ndarray | None = None, xmat: np.ndarray | None = None
+    ) -> rrb.Blueprint:
+        """The recording's default layout, the camera framed on the intruders at these poses."""
+        scene = rrb.Tabs(
+            rrb.Spatial3DView(
+                origin="world",
+                name="bodies, medium, RFT forces",
+                eye_controls=self._eye(xpos, xmat),
+            ),
+            rrb.TextDocumentView(origin="info", name="legend"),
+            active_tab=0,
+        )
+        per_body = []
+        for be in self.fld.bodies:
+            name = self._names[be.body]
+            per_body.append(
+                rrb.Vertical(
+                    rrb.TimeSeriesView(
+                        origin=f"rft/{name}/force", name=f"{be.name}: RFT force [N]"
+                    ),
+                    rrb.TimeSeriesView(
+                        origin=f"rft/{name}/torque",
+                        name=f"{be.name}: RFT torque about the CoM [N m]",
+                    ),
+                    name=be.name,
+                )
+            )
+        plots = [per_body[0] if len(per_body) == 1 else rrb.Tabs(*per_body)]
+        if self.model.nsensor:
+            plots.append(
+                rrb.TimeSeriesView(
+                    origin="sensors",
+                    name="MJCF sensors",
+                    plot_legend=rrb.PlotLegend(visible=False),  # one entry per sensor: too many
+                )
+            )
         return rrb.Blueprint(
             rrb.Horizontal(
-                rrb.Spatial3DView(origin="world", name="bodies, medium, RFT forces"),
-                rrb.Vertical(
-                    rrb.TimeSeriesView(origin="rft", name="RFT force [N], torque [N m]"),
-                    rrb.TimeSeriesView(origin="sensors", name="MJCF sensors"),
-                ),
+                scene,
+                rrb.Vertical(*plots, row_shares=[2, 1][: len(plots)]),
                 column_shares=[3, 2],
             ),
-            rrb.TimePanel(timeline="sim_time"),
-            collapse_panels=False,
+            rrb.BlueprintPanel(state="collapsed"),
+            rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(timeline="sim_time", state="collapsed"),
         )
+
+    def _send_blueprint(self, xpos: np.ndarray | None, xmat: np.ndarray | None) -> None:
+        rr.send_blueprint(
+            self._blueprint(xpos, xmat), make_active=True, make_default=True, recording=self.rec
+        )
+        self._blueprint_sent = True
 
     def _surface_box(self) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) xy corners of the drawn surface [m]."""
@@ -342,6 +469,7 @@ class Recorder:
                 vertex_positions=corners,
                 triangle_indices=[[0, 1, 2], [0, 2, 3]],
                 albedo_factor=SURFACE_RGBA,
+                face_rendering=rr.components.MeshFaceRendering.DoubleSided,
             ),
             static=True,
         )
@@ -356,12 +484,10 @@ class Recorder:
             es = fld.body_element_set(be.body)
             tri = np.asarray(es.vertices)[np.asarray(es.faces)].reshape(-1, 3)
             normals = np.repeat(np.asarray(es.normals), 3, axis=0)
-            colors = stress_colors(np.zeros(len(es)), self.stress_max)
+            # Only what never changes: static vertex colours would hide the per-frame ones.
             rec.log(
                 f"world/bodies/{self._names[be.body]}/rft_mesh",
-                rr.Mesh3D(
-                    vertex_positions=tri, vertex_normals=normals, vertex_colors=np.repeat(colors, 3)
-                ),
+                rr.Mesh3D.from_fields(vertex_positions=tri, vertex_normals=normals),
                 static=True,
             )
         for b, (v, f, c) in self._other.items():
@@ -376,25 +502,41 @@ class Recorder:
                 for axis in "xyz":
                     rec.log(
                         f"rft/{name}/{quantity}/{axis}",
-                        rr.SeriesLines(names=f"{be.name} RFT {quantity} {axis} [{unit}]"),
+                        rr.SeriesLines(
+                            names=f"{be.name} {quantity} {axis} [{unit}]",
+                            colors=[AXIS_RGB[axis]],
+                        ),
                         static=True,
                     )
         rec.log("info", rr.TextDocument(self.legend(), media_type="text/markdown"), static=True)
 
     def legend(self) -> str:
         """Markdown legend of the recording: entities, frames, units and this run's scales."""
+        if self.fixed_arrow_scale is not None:
+            arrows = f"{self.fixed_arrow_scale:.4g} m per N"
+        else:
+            sizes = ", ".join(
+                f"{be.name} {1000 * s:.3g} mm"
+                for be, s in zip(self.fld.bodies, self.body_sizes, strict=True)
+            )
+            arrows = (
+                f"automatic scale: the longest arrow of a frame is {AUTO_ARROW_FRACTION:.0%} of "
+                f"the body's size ({sizes}); the frame's scale [m/N] is the arrows' "
+                "`arrow_scale` component"
+            )
         return (
             "# mjrft recording\n\n"
             f"* `world/bodies/<body>`: body pose (world frame). `.../rft_mesh`: RFT triangles, "
             f"coloured by stress |F|/dA, viridis 0 ... {self.stress_max:g} Pa (clipped above; "
             "grey = no force). `.../geoms`: other geoms (coarse).\n"
-            f"* `world/forces/<body>`: per-triangle RFT force arrows, world frame, "
-            f"{self.arrow_scale:.4g} m per N, at most {self.max_arrows} per body (even stride "
+            "* `world/forces/<body>`: per-triangle RFT force arrows, world frame, tip at the "
+            f"triangle's centroid, {arrows}; at most {self.max_arrows} per body (even stride "
             "over acting triangles); component `element_index` = triangle index.\n"
             "* `rft/<body>/force|torque/x|y|z`: RFT force [N] and torque about the CoM [N m], "
             "world frame.\n"
             "* `sensors/<name>[/i]`: MJCF sensors (MuJoCo units and frames).\n"
-            "* `world/surface`: free surface; `world/region`: the medium's box (if any).\n\n"
+            "* `world/surface`: free surface (translucent); `world/region`: the medium's box "
+            "(if any).\n\n"
             f"A frame every {self.every} steps; timelines `step` and `sim_time`. Each frame shows "
             "the state a step integrated from and the forces computed there."
         )
@@ -409,21 +551,20 @@ class Recorder:
           data: MjData whose derived quantities are consistent (after ``mj_forward``, or after
             an Euler/implicit ``mj_step``).
 
-        Poses and scalars are buffered and sent as columns every ``FLUSH_FRAMES`` frames and on
-        :meth:`close` (one call per entity instead of one per value: logging stays well below
-        the cost of the steps). Mesh colours and arrows of a body are logged while it feels a
-        force, and once more (grey, no arrows) when it stops.
+        The frame is built whole and then buffered in one step; the buffer is sent every
+        ``FLUSH_FRAMES`` frames and on :meth:`close` (poses and scalars as one column per
+        entity: logging stays well below the cost of the steps). So a frame interrupted at any
+        point (Ctrl-C) is left out entirely, and every frame logged before it is kept. Mesh
+        colours and arrows of a body are logged at the first frame, while it feels a force, and
+        once more (grey, no arrows) when it stops.
         """
         if self._closed:
             raise RuntimeError("this Recorder is closed")
-        rec, fld = self.rec, self.fld
-        self._steps.append(int(step))
-        self._times.append(float(time))
-        self._poses.append((data.xpos[self._drawn].copy(), data.xmat[self._drawn].copy()))
+        fld = self.fld
+        xpos, xmat = data.xpos[self._drawn].copy(), data.xmat[self._drawn].copy()
         states = {st.body: st for st in fld.element_states(data)}
-        scalars = []
-        timed = False
-        for be in fld.bodies:
+        scalars, looks, shown = [], [], list(self._shown)
+        for k, be in enumerate(fld.bodies):
             b = be.body
             st = states.get(b)
             force, torque = np.zeros(3), np.zeros(3)
@@ -442,67 +583,94 @@ class Recorder:
                     ]
                 )  # sum of r x f about the CoM
             scalars += [force, torque]
-            if not (active or self._active[b]):
+            if shown[k] is False and not active:
                 continue  # unchanged since the last logged frame: grey, no arrows
-            self._active[b] = active
-            if not timed:
-                rec.set_time("step", sequence=int(step))
-                rec.set_time("sim_time", duration=float(time))
-                timed = True
-            name = self._names[b]
+            shown[k] = active
             stress = np.zeros(len(be.areas))
             index = np.zeros(0, dtype=np.int64)
             origins = vectors = np.zeros((0, 3))
+            scale = None
             if active:
                 stress[st.index] = mag / st.area
                 if len(acting) > self.max_arrows:  # an even stride through the acting triangles
                     pick = np.linspace(0, len(acting) - 1, self.max_arrows)
                     acting = acting[np.rint(pick).astype(np.int64)]
-                index = st.index[acting]
-                origins, vectors = st.pos[acting], st.force[acting] * self.arrow_scale
-            colors = stress_colors(stress, self.stress_max)
-            rec.log(
-                f"world/bodies/{name}/rft_mesh",
-                rr.Mesh3D.from_fields(vertex_colors=np.repeat(colors, 3)),
-            )
-            rec.log(
-                f"world/forces/{name}",
-                rr.Arrows3D(
-                    origins=origins,
-                    vectors=vectors,
-                    colors=colors[index],
-                    radii=self.arrow_radius,
-                ),
-                rr.AnyValues(element_index=pa.array(index, type=pa.uint32())),
-            )
+                if len(acting):
+                    scale = self.fixed_arrow_scale
+                    if scale is None:
+                        scale = AUTO_ARROW_FRACTION * self.body_sizes[k] / mag[acting].max()
+                    index = st.index[acting]
+                    vectors = st.force[acting] * scale
+                    origins = st.pos[acting] - vectors  # tip on the triangle, shaft in the medium
+            colors = np.repeat(stress_colors(stress, self.stress_max), 3)
+            looks.append((k, colors, index, origins, vectors, scale))
         scalars.append(np.asarray(data.sensordata, dtype=np.float64))
-        self._scalars.append(np.concatenate(scalars))
-        self.frames += 1
-        if len(self._steps) >= FLUSH_FRAMES:
+        frame = _Frame(int(step), float(time), xpos, xmat, np.concatenate(scalars), tuple(looks))
+        if not self._blueprint_sent:
+            self._send_blueprint(data.xpos, data.xmat)
+        self._buffer.append(frame)  # the frame is complete: from here on it is in the file
+        self._shown = shown
+        for look in looks:
+            if look[5] is not None:
+                self._last_arrow_scale = float(look[5])
+        if len(self._buffer) >= FLUSH_FRAMES:
             self._send_buffered()
 
     def _send_buffered(self) -> None:
-        """Send the buffered poses and scalars as one column chunk per entity."""
-        if not self._steps:
-            return
-        steps, times = np.array(self._steps), np.array(self._times)
-        xpos = np.stack([p for p, _ in self._poses])  # (frames, drawn, 3)
-        xmat = np.stack([m for _, m in self._poses])  # (frames, drawn, 9)
-        values = np.stack(self._scalars)  # (frames, scalar paths)
-        self._steps, self._times, self._poses, self._scalars = [], [], [], []
-        indexes = [rr.TimeColumn("step", sequence=steps), rr.TimeColumn("sim_time", duration=times)]
-        for j, b in enumerate(self._drawn):
-            self.rec.send_columns(
-                f"world/bodies/{self._names[b]}",
-                indexes=indexes,
-                columns=rr.Transform3D.columns(
-                    translation=xpos[:, j], mat3x3=xmat[:, j].reshape(-1, 3, 3)
-                ),
-            )
-        for k, path in enumerate(self._scalar_paths):
-            self.rec.send_columns(
-                path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, k])
-            )
+        """Send the buffered frames (Ctrl-C held until done): poses and scalars as one column
+        chunk per entity, then each frame's mesh colours and arrows."""
+        with HeldSignals():
+            frames = self._buffer
+            if not frames:
+                return
+            rec = self.rec
+            indexes = [
+                rr.TimeColumn("step", sequence=[f.step for f in frames]),
+                rr.TimeColumn("sim_time", duration=[f.time for f in frames]),
+            ]
+            xpos = np.stack([f.xpos for f in frames])  # (frames, drawn, 3)
+            xmat = np.stack([f.xmat for f in frames])  # (frames, drawn, 9)
+            values = np.stack([f.scalars for f in frames])  # (frames, scalar paths)
+            for j, b in enumerate(self._drawn):
+                rec.send_columns(
+                    f"world/bodies/{self._names[b]}",
+                    indexes=indexes,
+                    columns=rr.Transform3D.columns(
+                        translation=xpos[:, j], mat3x3=xmat[:, j].reshape(-1, 3, 3)
+                    ),
+                )
+            for k, path in enumerate(self._scalar_paths):
+                rec.send_columns(
+                    path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, k])
+                )
+            for f in frames:
+                if not f.looks:
+                    continue
+                rec.set_time("step", sequence=f.step)
+                rec.set_time("sim_time", duration=f.time)
+                for k, colors, index, origins, vectors, scale in f.looks:
+                    name = self._names[self._intruders[k]]
+                    rec.log(
+                        f"world/bodies/{name}/rft_mesh",
+                        rr.Mesh3D.from_fields(vertex_colors=colors),
+                    )
+                    rec.log(
+                        f"world/forces/{name}",
+                        rr.Arrows3D(
+                            origins=origins,
+                            vectors=vectors,
+                            colors=colors[3 * index],
+                            radii=self.arrow_radii[k],
+                        ),
+                        rr.AnyValues(
+                            element_index=pa.array(index, type=pa.uint32()),
+                            arrow_scale=pa.array(
+                                [] if scale is None else [scale], type=pa.float64()
+                            ),
+                        ),
+                    )
+            self._sent += len(frames)
+            self._buffer = []
 
     def __call__(self, step: int, time: float, data: mujoco.MjData) -> None:
         """Observer for ``simulate.run``: same as :meth:`log_state`."""
@@ -512,12 +680,16 @@ class Recorder:
     def close(self) -> None:
         """Send what is buffered, flush, finalise the file (idempotent; call in a ``finally``).
 
-        A viewer that cannot be reached (``connect``) only warns: the file is still completed.
+        Safe after an exception or a KeyboardInterrupt anywhere in :meth:`log_state`: the file
+        then holds exactly the frames whose logging completed. A viewer that cannot be reached
+        (``connect``) only warns: the file is still completed.
         """
         if self._closed:
             return
         self._closed = True
         try:
+            if not self._blueprint_sent:
+                self._send_blueprint(None, None)
             self._send_buffered()
             self.rec.flush()
         except RuntimeError as exc:  # rerun reports unreachable gRPC sinks this way
@@ -569,7 +741,10 @@ def read_entity(path: str | os.PathLike, entity: str) -> list[dict[str, object]]
     Returns dicts of column -> Python value, sorted by ``step`` where the rows have one: the
     timelines ``step`` (int) and ``sim_time`` (float seconds) and the components under their
     rerun names (``Arrows3D:vectors``: list of [x, y, z]; ``Scalars:scalars``: [value]; ...).
-    Static rows have no timeline. For checks and tests; for analysis see ``rerun.dataframe``.
+    Static rows have no timeline. These are the rows as logged; what the viewer shows at a time
+    is, per component, the static value if there is one, else the latest row at or before it.
+    Built on ``rerun.chunk.RrdReader`` (chunks as pyarrow record batches); ``rerun rrd print``,
+    ``rerun rrd stats`` and ``rerun rrd verify`` inspect a file from the shell.
     """
     from rerun.chunk import RrdReader
 

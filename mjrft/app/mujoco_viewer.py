@@ -1,0 +1,135 @@
+"""MuJoCo's interactive viewer with the granular field installed and its forces drawn.
+
+``mjrft view MODEL`` runs ``launch``; in a loop of your own, install the field, step, and
+call ``draw_forces(viewer.user_scn, ...)`` before ``viewer.sync()``
+(docs/field.md, "In MuJoCo's viewer"). The arrows are scene decorations (``mjvScene`` user
+geoms): they are drawn, never simulated.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from mjrft.app.view import has_display
+from mjrft.field.granular_field import GranularField
+
+#: Colour of the per-body RFT force arrows (RGBA): orange, apart from MuJoCo's own contact
+#: force arrows.
+BODY_ARROW_RGBA = np.array([1.0, 0.45, 0.0, 1.0], dtype=np.float32)
+#: Colour of the per-triangle RFT force arrows (RGBA).
+TRIANGLE_ARROW_RGBA = np.array([0.1, 0.6, 1.0, 0.8], dtype=np.float32)
+#: Default arrow length per newton [m/N] of the per-body arrows: 5 cm for 1 N, the weight of
+#: the shipped rigs' intruders is of that order.
+DEFAULT_FORCE_SCALE = 0.05
+#: Arrow shaft width as a fraction of its length, with bounds [m] so that short arrows stay
+#: visible and long ones do not hide the body.
+ARROW_WIDTH_FRACTION = 0.04
+ARROW_WIDTH_MIN, ARROW_WIDTH_MAX = 0.0008, 0.006
+#: At most this many per-triangle arrows per body and frame (an even stride through the
+#: triangles that feel a force): a frame stays cheap to draw.
+DEFAULT_MAX_TRIANGLE_ARROWS = 200
+#: Forces below this [N] draw no arrow (round-off of a body just at the surface).
+MIN_ARROW_FORCE = 1e-9
+
+
+def _add_arrow(scn: mujoco.MjvScene, tail: np.ndarray, head: np.ndarray, rgba) -> bool:
+    """Append an arrow from tail to head (world frame [m]) to scn; False if scn is full."""
+    if scn.ngeom >= scn.maxgeom:
+        return False
+    length = float(np.linalg.norm(head - tail))
+    width = min(max(ARROW_WIDTH_FRACTION * length, ARROW_WIDTH_MIN), ARROW_WIDTH_MAX)
+    g = scn.geoms[scn.ngeom]
+    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_ARROW, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
+                        rgba)  # fmt: skip
+    mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_ARROW, width, tail, head)
+    scn.ngeom += 1
+    return True
+
+
+def draw_forces(
+    scn: mujoco.MjvScene,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    fld: GranularField,
+    *,
+    force_scale: float = DEFAULT_FORCE_SCALE,
+    triangles: bool = False,
+    max_triangle_arrows: int = DEFAULT_MAX_TRIANGLE_ARROWS,
+) -> int:
+    """Replace scn's user geoms by the RFT force on every intruding body, as arrows.
+
+    Per body: an arrow from its CoM (``data.xipos``) along the field's latest force on it
+    (``fld.wrench_of(data)``), force_scale [m/N] long per newton, world frame. With triangles,
+    also the per-triangle forces (``fld.element_states``, which evaluates the pure model at
+    data's kinematics: call it after a step or ``mj_forward``), each drawn with its tip on the
+    triangle, at the same scale times the body's triangle count over the arrows drawn, so
+    that the triangle arrows of a body add up to about its arrow's length. Returns the number of
+    arrows drawn (fewer if scn.maxgeom is reached).
+    """
+    if not (math.isfinite(force_scale) and force_scale > 0):
+        raise ValueError(f"force_scale must be a finite number > 0 m/N, got {force_scale}")
+    scn.ngeom = 0
+    drawn = 0
+    wrench = fld.wrench_of(data)
+    for b in fld.body_ids:
+        f = wrench[b, :3]
+        if np.linalg.norm(f) > MIN_ARROW_FORCE:
+            tail = data.xipos[b]
+            drawn += _add_arrow(scn, tail, tail + force_scale * f, BODY_ARROW_RGBA)
+    if triangles:
+        for st in fld.element_states(data):
+            acting = np.flatnonzero(np.linalg.norm(st.force, axis=1) > MIN_ARROW_FORCE)
+            pick = acting[:: max(1, -(-len(acting) // max(max_triangle_arrows, 1)))]
+            scale = force_scale * len(acting) / max(len(pick), 1)
+            for i in pick:
+                head = st.pos[i]
+                drawn += _add_arrow(scn, head - scale * st.force[i], head, TRIANGLE_ARROW_RGBA)
+    return drawn
+
+
+def launch(
+    model: mujoco.MjModel,
+    fld: GranularField,
+    *,
+    data: mujoco.MjData | None = None,
+    ctrl: Callable[[float, mujoco.MjData], np.ndarray | None] | None = None,
+    force_scale: float = DEFAULT_FORCE_SCALE,
+    triangles: bool = False,
+    duration: float | None = None,
+) -> mujoco.MjData:
+    """Simulate in MuJoCo's passive viewer, in real time, with the field installed and its forces
+    drawn, until the window is closed (or `duration` simulated seconds pass).
+
+    ctrl: an optional controller ``ctrl(t, data)`` as in ``mjrft.app.simulate.run``. Returns the
+    final MjData. Raises RuntimeError naming what is missing when no window can be opened.
+    """
+    import mujoco.viewer
+
+    from mjrft.app.simulate import checked_controller
+
+    if not has_display():
+        raise RuntimeError(
+            "mjrft view needs a display (DISPLAY and WAYLAND_DISPLAY are unset); on a headless "
+            "machine record the run instead: mjrft run MODEL --duration T --out DIR --rrd run.rrd"
+        )
+    data = data if data is not None else mujoco.MjData(model)
+    apply_ctrl = checked_controller(model, ctrl)
+    with fld.installed(), mujoco.viewer.launch_passive(model, data) as viewer:
+        wall0, sim0 = time.perf_counter(), data.time
+        while viewer.is_running() and (duration is None or data.time - sim0 < duration):
+            with viewer.lock():
+                if apply_ctrl is not None:
+                    apply_ctrl(data)
+                mujoco.mj_step(model, data)
+                draw_forces(viewer.user_scn, model, data, fld, force_scale=force_scale,
+                            triangles=triangles)  # fmt: skip
+            viewer.sync()
+            ahead = (data.time - sim0) - (time.perf_counter() - wall0)
+            if ahead > 0:
+                time.sleep(ahead)  # real time: never faster than the simulation clock
+    return data
