@@ -358,6 +358,7 @@ def main(args: argparse.Namespace) -> int:
     path = Path(args.file)
     if not path.is_file():
         raise ValueError(f"no recording {str(path)!r}")
+    path = readable_copy(path)
     if not args.web:
         if not has_display():
             print(
@@ -375,6 +376,29 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
     return serve(path, args.port, args.grpc_port)
+
+
+def readable_copy(path: Path, err=None) -> Path:
+    """`path` if rerun can read it as it is; for a recording cut short (no end message: a full
+    disk, a killed run, or a run still writing it), a salvaged copy of its complete messages
+    (``mjrft.app.rrd_file``) next to it, or in the temporary directory if that is not writable.
+    """
+    from mjrft.app import rrd_file
+
+    found = rrd_file.scan(path)
+    if found.finished:
+        return path
+    out = rrd_file.salvaged_name(path)
+    if not os.access(out.parent, os.W_OK):
+        out = Path(tempfile.gettempdir()) / out.name
+    rrd_file.salvage(path, out)
+    print(
+        f"mjrft view-recording: {path} was not closed (a full disk, a killed run, or a run still "
+        f"writing it): opening a copy of its {found.messages} complete messages "
+        f"({found.complete / 1e6:.1f} of {found.size / 1e6:.1f} MB), {out}",
+        file=err or sys.stderr,
+    )
+    return out
 
 
 def _port(text: str) -> int:

@@ -55,6 +55,7 @@ import math
 import os
 import shutil
 import sys
+import tempfile
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -66,7 +67,7 @@ import pyarrow as pa
 import rerun as rr
 import rerun.blueprint as rrb
 
-from mjrft.app import simulate
+from mjrft.app import rrd_file, simulate
 from mjrft.app.recording_defaults import (
     DEFAULT_CONNECT_URL,
     DEFAULT_FRAME_PERIOD_S,
@@ -744,13 +745,27 @@ def read_entity(path: str | os.PathLike, entity: str) -> list[dict[str, object]]
     Static rows have no timeline. These are the rows as logged; what the viewer shows at a time
     is, per component, the static value if there is one, else the latest row at or before it.
     Built on ``rerun.chunk.RrdReader`` (chunks as pyarrow record batches); ``rerun rrd print``,
-    ``rerun rrd stats`` and ``rerun rrd verify`` inspect a file from the shell.
+    ``rerun rrd stats`` and ``rerun rrd verify`` inspect a file from the shell. A file cut short
+    (a full disk, a killed run) is read up to its last complete message
+    (``mjrft.app.rrd_file.salvage``).
     """
+    if not rrd_file.scan(path).finished:
+        with tempfile.TemporaryDirectory() as tmp:
+            copy = Path(tmp) / "salvaged.rrd"
+            rrd_file.salvage(path, copy)
+            return _read_rows(copy, entity)
+    return _read_rows(Path(path), entity)
+
+
+def _read_rows(path: Path, entity: str) -> list[dict[str, object]]:
     from rerun.chunk import RrdReader
 
     want = entity if entity.startswith("/") else "/" + entity
     rows: list[dict[str, object]] = []
-    for chunk in RrdReader(str(path)).stream():
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="RRD file has no footer")  # a salvaged copy
+        reader = RrdReader(str(path))
+    for chunk in reader.stream():
         if chunk.entity_path != want:
             continue
         batch = chunk.to_record_batch()
