@@ -5,6 +5,8 @@ The production implementation is the compiled pass (``mjrft.field.passive`` and 
 Here the same rules are written plainly in NumPy, one function per rule:
 
 * the low-speed treatment of a free rigid body (:func:`treat` and its parts; any wrench law);
+* the treatment of bodies in mechanisms (:func:`mechanism_wrenches`, from MuJoCo's own
+  ``mj_fullM`` and ``mj_jacBodyCom`` and dense NumPy solves);
 * the RK4 stage rule (:func:`rk4_stage_held`, :class:`ReferenceField`);
 * the ``xfrc_applied`` ownership protocol (:class:`ReferenceField`);
 * the pure model on a tagged body from ``mjrft.element_forces`` (:func:`body_wrench_at`).
@@ -33,6 +35,7 @@ from mjrft.field.lowspeed import (
     SLIP,
     STICK,
 )
+from mjrft.field.mechanism import HOLD_REGULARISATION
 
 __all__ = ["IMPLICIT", "PURE", "SLIP", "STICK"]
 
@@ -416,6 +419,103 @@ def treated_wrench(field, data, user) -> tuple[np.ndarray, list[int], dict[int, 
     return w, decisions, modes
 
 
+def body_metric(field, data, b: int) -> tuple[float, np.ndarray]:
+    """(mass, world inertia (3, 3)) of body b: the metric of its twists."""
+    x = data.ximat[b].reshape(3, 3)
+    return float(field.model.body_mass[b]), (x * field.model.body_inertia[b]) @ x.T
+
+
+def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dict) -> None:
+    """The treatment of bodies in mechanisms (mjrft.field.mechanism), in place on w (nbody, 6)
+    and decisions; st: this MjData's record (time of the last pass, the generalized force the
+    field applied then, the last holds)."""
+    m, dt, nv = field.model, float(field.model.opt.timestep), field.model.nv
+    t = float(data.time)
+    t0 = st.get("mech_time")
+    if t0 is not None and t == t0:  # a repeated pass reads what the first pass at t read
+        valid, qacc, tau_prev, held_before, prev = st["mech_in"]
+    else:
+        valid = t0 is not None and abs(t - (t0 + dt)) <= 1e-9 * dt + 1e-12 * abs(t)
+        qacc = np.array(data.qacc)
+        tau_prev = st.get("mech_tau", np.zeros(nv))
+        held_before, prev = st.get("mech_held", {}), st.get("mech_prev", {})
+        st["mech_in"] = (valid, qacc, tau_prev, held_before, prev)
+    st["mech_time"] = t
+    rows = [
+        k for k, be in enumerate(field.bodies)
+        if field.mechanism_eligible[k] and (idx := candidates(field, data, be)) is not None
+        and np.any(be.centroids[idx] @ data.xmat[be.body].reshape(3, 3)[2] + data.xpos[be.body, 2]
+                   < field.surface_z)
+    ]  # fmt: skip
+    st["mech_tau"], st["mech_held"], st["mech_prev"] = np.zeros(nv), {}, {}
+    if not rows or nv == 0 or not dt > 0.0:
+        return
+    M = np.zeros((nv, nv))
+    mujoco.mj_fullM(m, data, M)
+    jac = []
+    for k in rows:
+        jp, jr = np.zeros((3, nv)), np.zeros((3, nv))
+        mujoco.mj_jacBodyCom(m, data, jp, jr, field.bodies[k].body)
+        jac.append(np.vstack([jp, jr]))
+    J = np.vstack(jac)  # (6n, nv)
+    u = data.qvel + dt * np.linalg.solve(M, M @ qacc - tau_prev)
+    A = J @ np.linalg.solve(M, J.T)
+    bodies = [field.bodies[k].body for k in rows]
+    n = len(rows)
+    out = np.array([w[b] for b in bodies])
+    held = np.zeros(n, dtype=bool)
+    if valid:
+        g = np.linalg.solve(M, J.T @ out.ravel())
+        for a, b in enumerate(bodies):
+            ja = J[6 * a : 6 * a + 6]
+            xi = ja @ data.qvel
+            dxi = ja @ u - xi + dt * (ja @ g)
+            pred = xi + field.low_speed.reach * dxi
+            mass, iw = body_metric(field, data, b)
+            keeps = inertia_dot(pred, xi, mass, iw) > 0.0
+            fast = field.low_speed.reach**2 * inertia_dot(dxi, dxi, mass, iw) < inertia_dot(
+                xi, xi, mass, iw
+            )
+            held[a] = not (keeps and fast)
+    ref = np.array(
+        [prev[k] if k in held_before else w[b] for k, b in zip(rows, bodies, strict=True)]
+    )
+    slipping = np.zeros(n, dtype=bool)
+    for _ in range(n + 1):
+        s_rows = [6 * a + r for a in range(n) if held[a] for r in range(6)]
+        if s_rows:
+            w_all = np.where(np.repeat(held, 6), ref.ravel(), out.ravel())
+            rhs = -(J[s_rows] @ u) / dt - A[s_rows] @ w_all
+            lhs = A[np.ix_(s_rows, s_rows)]
+            eps = HOLD_REGULARISATION * np.max(np.diag(lhs)) + 1e-300
+            delta = np.linalg.solve(lhs + eps * np.eye(len(s_rows)), rhs)
+            out[held] = ref[held] + delta.reshape(-1, 6)
+        worst, margin, slip = -1, 0.0, None
+        for a in np.flatnonzero(held):
+            xf = -dt * A[6 * a : 6 * a + 6, 6 * a : 6 * a + 6] @ out[a]
+            hold = -float(out[a] @ xf)
+            if not hold > 0.0:
+                continue
+            be = field.bodies[rows[a]]
+            r_w = twist_wrench_at(field, data, be, candidates(field, data, be), xf)
+            medium = -float(r_w @ xf)
+            short = hold - medium - ROUNDING * (hold + abs(medium))
+            if short > margin:
+                worst, margin, slip = a, short, r_w
+        if worst < 0:
+            break
+        xi = J[6 * worst : 6 * worst + 6] @ data.qvel
+        held[worst], slipping[worst] = False, True
+        out[worst] = slip if float(slip @ xi) <= 0.0 else w[bodies[worst]]
+    for a, (k, b) in enumerate(zip(rows, bodies, strict=True)):
+        w[b] = out[a]
+        decisions[k] = STICK if held[a] else (SLIP if slipping[a] else PURE)
+        if held[a]:
+            st["mech_held"][k] = True
+            st["mech_prev"][k] = out[a].copy()
+    st["mech_tau"] = J.T @ out.ravel()
+
+
 def rk4_stage_held(t: float, h: float, record: list[float]) -> bool:
     """True if a pass at time t [s] is stage 2, 3 or 4 of an RK4 step of length h [s] whose
     stage 1 was evaluated: MuJoCo's RK4 runs its stages at t0, t0 + h/2, t0 + h/2, t0 + h
@@ -470,6 +570,11 @@ class ReferenceField:
                     w[be.body] = twist_wrench_at(self.field, d, be, idx, mode[1]) + mode[2]
         else:
             w, self.decisions, st["modes"] = treated_wrench(self.field, d, user)
+            if self.field.low_speed.mechanisms:
+                mechanism_wrenches(self.field, d, w, self.decisions, st)
+                for k, dec in enumerate(self.decisions):
+                    if dec != PURE and self.field.mechanism_eligible[k]:
+                        st["modes"][k] = "hold"
         total = st["user"] + w[rows]
         total[keep] = current[keep]
         d.xfrc_applied[rows] = total

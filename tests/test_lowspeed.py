@@ -504,7 +504,7 @@ def test_treatment_settings_from_mjcf_and_python():
     assert GranularField(m).low_speed == lowspeed.LowSpeed("off", 2.5)
     assert GranularField(m, low_speed="stick").low_speed == lowspeed.LowSpeed("stick", 2.5)
     assert GranularField(m, stick_reach=1.0).low_speed.reach == 1.0
-    with pytest.raises(SceneError, match="low_speed = 'sticky'.*stick, off"):
+    with pytest.raises(SceneError, match="low_speed = 'sticky'.*stick, free, off"):
         GranularField(m, low_speed="sticky")
     with pytest.raises(SceneError, match="reach = -1.*\\(0, 1000\\]"):
         GranularField(m, stick_reach=-1)

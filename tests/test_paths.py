@@ -169,7 +169,7 @@ def test_records_round_trip_every_field():
     fm, dd, s = unpacked(fld._tables.address, st.address)
     want_d = tables.MjDataArrays(
         d.xpos, d.xmat.reshape(-1, 3, 3), d.xipos, d.ximat.reshape(-1, 3, 3), d.cvel,
-        d.subtree_com, d.geom_xpos, None, d.xfrc_applied,
+        d.subtree_com, d.geom_xpos, None, d.xfrc_applied, d.M, d.qvel, d.qacc, d.cdof,
     )  # fmt: skip
     for group, want in ((fm, fld._tables.arrays), (s, st.arrays), (dd, want_d)):
         assert group._fields == want._fields

@@ -623,6 +623,8 @@ def _view(args: argparse.Namespace) -> int:
 
 def _add_scene_options(r) -> None:
     """Options of ``mjrft run`` and ``mjrft view`` that override the model and its scene."""
+    from mjrft.field.lowspeed import MODES
+
     r.add_argument(
         "--timestep",
         type=_positive_float,
@@ -677,11 +679,11 @@ def _add_scene_options(r) -> None:
     )
     r.add_argument(
         "--low-speed",
-        choices=["stick", "off"],
+        choices=list(MODES),
         default=None,
-        help="low-speed treatment of free bodies (docs/stability.md): stick holds bodies at "
-        "rest like static friction, off is the pure model (default: the model's "
-        "mjrft:low_speed, else stick)",
+        help="low-speed treatment (docs/stability.md): stick holds free bodies and bodies in "
+        "mechanisms at rest like static friction, free only free bodies, off is the pure model "
+        "(default: the model's mjrft:low_speed, else stick)",
     )
     r.add_argument(
         "--stick-reach",

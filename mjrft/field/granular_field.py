@@ -27,7 +27,13 @@ import numpy as np
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.field import guard, lowspeed, ownership, passive, python_material
-from mjrft.field.model import BodyElements, body_elements, build_tables, free_rigid
+from mjrft.field.model import (
+    BodyElements,
+    body_elements,
+    build_tables,
+    free_rigid,
+    mechanism_body,
+)
 from mjrft.field.scene import Scene, scene_from_model
 from mjrft.field.signals import HeldSignals
 from mjrft.field.state import DataState, States
@@ -63,8 +69,9 @@ class GranularField:
         ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
       tolerance: instead of n_triangles, the relative RMS force error wanted per primitive geom
         (e.g. 0.01); the count comes from ``mjrft.geometry.triangles_for_tolerance``.
-      low_speed: "stick" (default) or "off": the low-speed stick/slip treatment of free bodies
-        (``mjrft.field.lowspeed``); overrides MJCF ``mjrft:low_speed``.
+      low_speed: "stick" (default), "free" or "off": the low-speed stick/slip treatment of free
+        bodies (``mjrft.field.lowspeed``) and of bodies in mechanisms (``mjrft.field.mechanism``),
+        of free bodies only, or none; overrides MJCF ``mjrft:low_speed``.
       stick_reach: the treatment's reach (default ``lowspeed.DEFAULT_REACH``); overrides MJCF
         ``mjrft:stick_reach``.
     Raises:
@@ -102,7 +109,16 @@ class GranularField:
         m = self.scene.material
         self._native = m.compiled
         key = 0 if self._native else self._register_python_material()
-        self._tables = build_tables(model, self.scene, self.bodies, self.stick_eligible, key)
+        #: Per body of ``body_ids``: True if the mechanism treatment acts on it (jointed, not a
+        #: free rigid body; ``low_speed`` "stick").
+        self.mechanism_eligible = (
+            np.array([mechanism_body(model, int(b)) for b in self.body_ids], dtype=bool)
+            & ~self.stick_eligible
+            & self.scene.low_speed.mechanisms
+        )
+        self._tables = build_tables(
+            model, self.scene, self.bodies, self.stick_eligible, key, self.mechanism_eligible
+        )
         #: (nbody, 6) wrench of the most recent installed pass of any of the model's MjData
         #: (updated in place); per MjData see ``wrench_of``.
         self.last_wrench = np.zeros((model.nbody, 6))

@@ -48,9 +48,9 @@ tried and rejected: a torque that translation causes was then applied to a stuck
 it up). ``reach`` scales the predicted velocity change and is the only knob (1: the exact
 time-stepping boundary; larger values hand more of the slow motion to steps 2 (implicit) and 3;
 default 4). The treatment needs the body's own inertia and every force on it, so it applies to
-free rigid bodies (a free joint, no jointed or massive descendants); bodies in mechanisms feel the
-pure model, since their actuator and constraint forces are not known when the field runs (MuJoCo
-computes them after the passive forces).
+free rigid bodies (a free joint, no jointed or massive descendants); bodies in mechanisms, whose
+actuator and constraint forces are not known when the field runs (MuJoCo computes them after the
+passive forces), get ``mjrft.field.mechanism`` instead.
 
 Frames: world; twists are (linear velocity of the CoM [m/s], angular velocity [rad/s]) and wrenches
 (force [N], torque about the CoM [N m]), both in world coordinates. Compiled; the arguments ``m``,
@@ -70,8 +70,10 @@ import numpy as np
 from mjrft.field.evaluate import in_play, twist_wrench
 from mjrft.field.tables import unpack
 
-#: Modes: "stick" (the treatment) or "off" (the pure model, for every body at every speed).
-MODES = ("stick", "off")
+#: Modes: "stick" (the treatment of free bodies and of bodies in mechanisms,
+#: ``mjrft.field.mechanism``), "free" (free bodies only: mechanism bodies feel the pure model) or
+#: "off" (the pure model, for every body at every speed).
+MODES = ("stick", "free", "off")
 #: Default ``reach``: the stability map passes every dropped and lowered body at it
 #: (docs/stability.md, "Results"); larger reaches hand more slow motion to the treatment but widen
 #: the range of speeds that do not feel the pure model (docs/stability.md, "The reach").
@@ -102,7 +104,7 @@ class LowSpeed:
     """Static configuration of the low-speed treatment (built once at load).
 
     Attributes:
-      mode: "stick" or "off".
+      mode: "stick", "free" or "off" (MODES).
       reach: > 0, dimensionless; the pure model is kept while the predicted velocity change over
         ``reach`` steps does not reverse the motion (see the module docstring).
     """
@@ -119,8 +121,13 @@ class LowSpeed:
 
     @property
     def on(self) -> bool:
-        """True if the treatment acts."""
+        """True if the treatment acts (on free bodies at least)."""
         return self.mode != "off"
+
+    @property
+    def mechanisms(self) -> bool:
+        """True if it acts on bodies in mechanisms too (``mjrft.field.mechanism``)."""
+        return self.mode == "stick"
 
 
 @numba.njit(**_JIT)

@@ -102,6 +102,20 @@ def free_rigid(model: mujoco.MjModel, b: int, tagged: set[int]) -> bool:
     return True
 
 
+def dof_mask(model: mujoco.MjModel, b: int) -> np.ndarray:
+    """(nv,) True where dof j moves body b: its joint's body is b or an ancestor of b."""
+    chain, p = set(), b
+    while p > 0:
+        chain.add(p)
+        p = int(model.body_parentid[p])
+    return np.array([int(model.dof_bodyid[j]) in chain for j in range(model.nv)], dtype=bool)
+
+
+def mechanism_body(model: mujoco.MjModel, b: int) -> bool:
+    """True if some joint moves body b (a body welded to the world has nothing to treat)."""
+    return bool(dof_mask(model, b).any())
+
+
 def _live_view(address: int, dtype: type, n: int) -> np.ndarray:
     """A NumPy view of n values at a checked address inside the MjModel (layout)."""
     ctype = np.ctypeslib.as_ctypes_type(dtype)
@@ -124,6 +138,13 @@ class StaticTables:
         return np.uint64(self.record.ctypes.data)
 
 
+def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
+    out = np.zeros((len(bodies), model.nv), dtype=np.int64)
+    for k, be in enumerate(bodies):
+        out[k] = dof_mask(model, be.body)
+    return out
+
+
 def material_coef(material, material_key: int) -> np.ndarray:
     """(18,) kernel coefficients of a compiled medium (zeros for a Python one)."""
     return material.kernel_coefficients if material_key == 0 else np.zeros(18)
@@ -135,9 +156,11 @@ def build_tables(
     bodies: tuple[BodyElements, ...],
     treat: np.ndarray,
     material_key: int,
+    mech: np.ndarray,
 ) -> StaticTables:
-    """The field's static tables; treat (ntbody,) bool: bodies the treatment may act on;
-    material_key: 0 for the compiled kernel, else the Python material's key."""
+    """The field's static tables; treat (ntbody,) bool: bodies the free-body treatment may act
+    on; material_key: 0 for the compiled kernel, else the Python material's key; mech (ntbody,)
+    bool: bodies the mechanism treatment acts on."""
     geoms, tbody, adr, num, rbound = [], [], [], [], []
     geomadr, geomnum, offset = [], [], 0
     for k, be in enumerate(bodies):
@@ -163,6 +186,11 @@ def build_tables(
         "tbody_treat": ((nk,), i8, np.asarray(treat, dtype=i8)),
         "region": ((2, 3), f8, np.zeros((2, 3)) if scene.region is None else scene.region),
         "coef": ((18,), f8, material_coef(scene.material, material_key)),
+        "tbody_mech": ((nk,), i8, np.asarray(mech, dtype=i8)),
+        "tbody_dofmask": ((nk, model.nv), i8, _dof_masks(model, bodies)),
+        "M_rownnz": ((model.nv,), i8, model.M_rownnz),
+        "M_rowadr": ((model.nv,), i8, model.M_rowadr),
+        "M_colind": ((len(model.M_colind),), i8, model.M_colind),
     })  # fmt: skip
     addr = layout.model_addresses(model)
     material = scene.material
@@ -203,6 +231,14 @@ def build_tables(
         body_mass=model.body_mass,
         body_inertia=model.body_inertia,
         body_gravcomp=model.body_gravcomp,
+        nv=model.nv,
+        nC=len(model.M_colind),
+        mech=int(np.any(mech)),
+        tbody_mech=small["tbody_mech"],
+        tbody_dofmask=small["tbody_dofmask"],
+        M_rownnz=small["M_rownnz"],
+        M_rowadr=small["M_rowadr"],
+        M_colind=small["M_colind"],
     )
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies)}
     return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mjrft.field import lowspeed, ownership, rk4
+from mjrft.field import lowspeed, mechanism, ownership, rk4
 from mjrft.field.evaluate import first_bad_body, pure_wrenches, twist_wrench
 from mjrft.field.tables import ENTRY_SIZE, unpack
 
@@ -90,6 +90,8 @@ def forward(m_rec, e_rec, mode):
         s.frozen[:] = 0.0
         if m.treat:
             lowspeed.treat_all(m_rec, e_rec, s.user if mode == INSTALLED else s.user_in)
+        if m.mech and mode == INSTALLED:
+            mechanism.treat_mechanisms(m_rec, e_rec)
         if mode == INSTALLED:
             rk4.write_modes(s.rk4, s.decision, s.slow, s.frozen, lowspeed.IMPLICIT)
     if mode == INSTALLED:

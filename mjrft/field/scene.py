@@ -12,7 +12,7 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          optional box bounding the medium [m]
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
-      <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick (default) or off
+      <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick, free or off
       <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.field.lowspeed), default 4
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
         <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
@@ -247,8 +247,8 @@ def scene_from_model(
     """Read and validate the scene; the keyword arguments override the MJCF's.
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
-    ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick" or "off") and stick_reach:
-    the low-speed treatment (``mjrft.field.lowspeed``).
+    ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick", "free" or "off") and
+    stick_reach: the low-speed treatment (``mjrft.field.lowspeed``).
     """
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")

@@ -29,18 +29,21 @@ from mjrft.field.tables import (
 )
 
 
-def _mjdata_arrays(data: mujoco.MjData | None, nbody: int, ngeom: int) -> tuple:
+def _mjdata_arrays(data: mujoco.MjData | None, fm) -> tuple:
     """MjDataArrays views of data (with the address of data.time), or zero stand-ins."""
+    nbody, ngeom, nv = fm.nbody, fm.ngeom, fm.nv
     if data is None:  # a batch thread's state: the batch passes each copy's arrays itself
         arrays = MjDataArrays(
             *(np.zeros((nbody, 3)), np.zeros((nbody, 3, 3)), np.zeros((nbody, 3))),
             *(np.zeros((nbody, 3, 3)), np.zeros((nbody, 6)), np.zeros((nbody, 3))),
             np.zeros((ngeom, 3)), np.zeros(1), np.zeros((nbody, 6)),
+            np.zeros(fm.nC), np.zeros(nv), np.zeros(nv), np.zeros((nv, 6)),
         )  # fmt: skip
         return arrays, arrays.time.ctypes.data
     arrays = MjDataArrays(
         data.xpos, data.xmat.reshape(nbody, 3, 3), data.xipos, data.ximat.reshape(nbody, 3, 3),
         data.cvel, data.subtree_com, data.geom_xpos, np.zeros(1), data.xfrc_applied,
+        data.M, data.qvel, data.qacc, data.cdof,
     )  # fmt: skip
     return arrays, layout.time_address(data)
 
@@ -70,7 +73,8 @@ class DataState:
         self.owned = False
         self.registered = False
         self.finalizer: weakref.finalize | None = None
-        self.mjdata, time_address = _mjdata_arrays(data, nb, fm.ngeom)
+        self.mjdata, time_address = _mjdata_arrays(data, fm)
+        nv = fm.nv
         f8, i8 = np.float64, np.int64
         small = arena({  # touched every pass: side by side (tables.arena)
             "status": ((1,), i8, 0), "cull": ((ng,), i8, 0), "keep": ((nk,), i8, 0),
@@ -79,6 +83,11 @@ class DataState:
             "wrench": ((nb, 6), f8, 0), "user": ((nb, 6), f8, 0), "written": ((nb, 6), f8, 0),
             "user_in": ((nb, 6), f8, 0), "frozen": ((nk, 12), f8, 0),
             "rk4": ((RK4_HEAD + RK4_BODY * nk,), f8, 0),
+            "mech_tau": ((nv,), f8, 0), "mech_time": ((3,), f8, 0),
+            "mech_prev": ((nk, 6), f8, 0), "mech_held": ((nk,), i8, 0),
+            "mech_R": ((nk, 6), f8, 0), "mech_key": ((nk, 19), f8, 0),
+            "mech_in": ((2, nv), f8, 0), "mech_in_prev": ((nk, 6), f8, 0),
+            "mech_in_held": ((nk,), i8, 0),
         })  # fmt: skip
         self.arrays = FieldData(
             **small,
@@ -87,6 +96,12 @@ class DataState:
             ring=np.zeros((ring + 1, 2, nk, 6)),
             report_wrench=report[0],
             report_decision=report[1],
+            mech_L=np.zeros((nv, nv)),
+            mech_J=np.zeros((6 * nk, nv)),
+            mech_X=np.zeros((6 * nk, nv)),
+            mech_A=np.zeros((6 * nk, 6 * nk)),
+            mech_S=np.zeros((6 * nk, 6 * nk)),
+            mech_vec=np.zeros((3, max(nv, 6 * nk))),
         )
         self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring})
         self.entry["time"] = time_address

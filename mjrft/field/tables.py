@@ -79,6 +79,14 @@ class FieldModel(NamedTuple):
     body_mass: np.ndarray  # (nbody,) live [kg]
     body_inertia: np.ndarray  # (nbody, 3) live, principal moments [kg m^2]
     body_gravcomp: np.ndarray  # (nbody,) live
+    nv: int  # MuJoCo's nv
+    nC: int  # MuJoCo's nC (size of M, the sparse inertia)
+    mech: int  # 1 if the treatment acts on bodies in mechanisms (mjrft.field.mechanism)
+    tbody_mech: np.ndarray  # (ntbody,) 1 if it is such a body
+    tbody_dofmask: np.ndarray  # (ntbody, nv) 1 where dof j moves tagged body k
+    M_rownnz: np.ndarray  # (nv,) MuJoCo's layout of M (lower triangle, CSR), int64
+    M_rowadr: np.ndarray  # (nv,)
+    M_colind: np.ndarray  # (nC,)
 
 
 class MjDataArrays(NamedTuple):
@@ -93,6 +101,10 @@ class MjDataArrays(NamedTuple):
     geom_xpos: np.ndarray  # (ngeom, 3)
     time: np.ndarray  # (1,)
     xfrc_applied: np.ndarray  # (nbody, 6), read and written
+    M: np.ndarray  # (nC,) joint-space inertia, MuJoCo's CSR lower triangle
+    qvel: np.ndarray  # (nv,)
+    qacc: np.ndarray  # (nv,): the previous forward pass's, when the passive callback runs
+    cdof: np.ndarray  # (nv, 6)
 
 
 class FieldData(NamedTuple):
@@ -118,6 +130,22 @@ class FieldData(NamedTuple):
     ring: np.ndarray  # (nring + 1, 2, ntbody, 6) recent (written, user) rows; [0, 0, 0, 0]: count
     report_wrench: np.ndarray  # (nbody, 6) the field's last_wrench (shared by its MjData)
     report_decision: np.ndarray  # (ntbody,) the field's last_decision (shared)
+    mech_tau: np.ndarray  # (nv,) generalized force the last pass applied to mechanism bodies
+    mech_time: np.ndarray  # (3,) time of the last installed pass, 1 once there was one, 1 if
+    #   its predictor was valid
+    mech_prev: np.ndarray  # (ntbody, 6) wrench of each body held in the last pass
+    mech_held: np.ndarray  # (ntbody,) 1 if held in the last pass
+    mech_in: np.ndarray  # (2, nv) qacc and mech_tau as the first pass at this time read them
+    mech_in_prev: np.ndarray  # (ntbody, 6) mech_prev as that pass read it
+    mech_in_held: np.ndarray  # (ntbody,) mech_held as that pass read it
+    mech_R: np.ndarray  # (ntbody, 6) the medium's resistance last evaluated for a hold
+    mech_key: np.ndarray  # (ntbody, 19) where: CoM, inertial frame, direction; 1 if valid
+    mech_L: np.ndarray  # (nv, nv) work: M, then its Cholesky factor
+    mech_J: np.ndarray  # (6 ntbody, nv) work: Jacobians of the bodies in play
+    mech_X: np.ndarray  # (6 ntbody, nv) work: rows of L^-1 J^T (M = L L^T)
+    mech_A: np.ndarray  # (6 ntbody, 6 ntbody) work: J M^-1 J^T
+    mech_S: np.ndarray  # (6 ntbody, 6 ntbody) work: the held bodies' block, factored
+    mech_vec: np.ndarray  # (3, max(nv, 6 ntbody)) work vectors
 
 
 def _sizes(names: tuple[str, ...]) -> list[tuple[str, type]]:
@@ -126,7 +154,10 @@ def _sizes(names: tuple[str, ...]) -> list[tuple[str, type]]:
 
 _MODEL_SIZES = ("nelem", "ntgeom", "ntbody")
 _FLOAT_SCALARS = {"surface_z", "zeta", "alpha_y", "reach", "jacobian_step", "rk4_hold_steps"}
-_INT_SCALARS = {"nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4"}
+_INT_SCALARS = {
+    "nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4", "nv",
+    "nC", "mech",
+}  # fmt: skip
 
 
 def _record(fields: tuple[str, ...], sizes: tuple[str, ...]) -> np.dtype:
@@ -219,6 +250,8 @@ def unpack_model(address):
         _f(t.opt_timestep, 1), _f(t.opt_gravity, 3),
         numba.carray(i32_ptr(t.opt_disableflags), 1), numba.carray(i32_ptr(t.opt_integrator), 1),
         _f(t.body_mass, nb), _f(t.body_inertia, (nb, 3)), _f(t.body_gravcomp, nb),
+        t.nv, t.nC, t.mech, _i(t.tbody_mech, nk), _i(t.tbody_dofmask, (nk, t.nv)),
+        _i(t.M_rownnz, t.nv), _i(t.M_rowadr, t.nv), _i(t.M_colind, t.nC),
     )  # fmt: skip
 
 
@@ -227,10 +260,12 @@ def unpack_entry(m, address):
     """(MjDataArrays, FieldData) of one MjData from the address of its ENTRY_RECORD."""
     t = numba.carray(_entry_ptr(address), 1)[0]
     nb, ne, ng, nk = m.nbody, m.elem_area.shape[0], m.tgeom_geomid.shape[0], m.tbody_bodyid.shape[0]
+    nv = m.nv
     d = MjDataArrays(
         _f(t.xpos, (nb, 3)), _f(t.xmat, (nb, 3, 3)), _f(t.xipos, (nb, 3)),
         _f(t.ximat, (nb, 3, 3)), _f(t.cvel, (nb, 6)), _f(t.subtree_com, (nb, 3)),
         _f(t.geom_xpos, (m.ngeom, 3)), _f(t.time, 1), _f(t.xfrc_applied, (nb, 6)),
+        _f(t.M, m.nC), _f(t.qvel, m.nv), _f(t.qacc, m.nv), _f(t.cdof, (m.nv, 6)),
     )  # fmt: skip
     s = FieldData(
         _f(t.user, (nb, 6)), _f(t.written, (nb, 6)), _f(t.user_in, (nb, 6)),
@@ -239,7 +274,12 @@ def unpack_entry(m, address):
         _i(t.keep, nk), _i(t.frz, nk), _i(t.slow, nk), _f(t.frozen, (nk, 12)),
         _i(t.decision, nk), _i(t.stats, N_STATS), _i(t.status, 1),
         _f(t.ring, (t.nring + 1, 2, nk, 6)), _f(t.report_wrench, (nb, 6)),
-        _i(t.report_decision, nk),
+        _i(t.report_decision, nk), _f(t.mech_tau, nv), _f(t.mech_time, 3),
+        _f(t.mech_prev, (nk, 6)), _i(t.mech_held, nk), _f(t.mech_in, (2, nv)),
+        _f(t.mech_in_prev, (nk, 6)), _i(t.mech_in_held, nk), _f(t.mech_R, (nk, 6)),
+        _f(t.mech_key, (nk, 19)), _f(t.mech_L, (nv, nv)),
+        _f(t.mech_J, (6 * nk, nv)), _f(t.mech_X, (6 * nk, nv)), _f(t.mech_A, (6 * nk, 6 * nk)),
+        _f(t.mech_S, (6 * nk, 6 * nk)), _f(t.mech_vec, (3, max(nv, 6 * nk))),
     )  # fmt: skip
     return d, s
 

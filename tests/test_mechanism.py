@@ -1,0 +1,147 @@
+"""The low-speed treatment of bodies in mechanisms (mjrft.field.mechanism): a robot standing on
+sand stays put, moving rigs keep the pure model, a passive chain settles without gaining energy.
+
+Reduced sizes of benchmarks/standing.py (the full table: docs/stability.md, "Mechanisms"). The
+compiled pass is checked against its plain statement in tests/test_paths.py (a body on a slide).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjrft.field import GranularField, lowspeed
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+#: The issue's bar for a standing robot: drift below 0.1 mm over the whole stand, force change
+#: below 1 % of the weight step to step.
+DRIFT_M, FORCE_CHANGE = 1e-4, 0.01
+#: A rig's force while it moves (after its first MOVING_AFTER steps, where it starts from rest
+#: and may be held) equals the pure model's within this fraction of its peak: the issue's 0.1 %.
+RIG_FORCE_RTOL, MOVING_AFTER = 1e-3, 100
+
+
+def standing_hexapod(integrator: int, timestep: float, low_speed: str):
+    model = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
+    model.opt.integrator, model.opt.timestep = integrator, timestep
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    data.ctrl[:] = 0.0  # gait stopped: each hip servo holds its angle
+    data.qvel[:] = 0.0
+    return model, data, GranularField(model, low_speed=low_speed)
+
+
+def stand(integrator: int, timestep: float, low_speed: str, seconds: float = 3.0):
+    """(torso positions (n, 3), total RFT vertical force (n,), weight) over the last second."""
+    model, data, fld = standing_hexapod(integrator, timestep, low_speed)
+    weight = float(model.body_subtreemass[1]) * -model.opt.gravity[2]
+    n, last = round(seconds / timestep), round(1.0 / timestep)
+    pos, fz = [], []
+    with fld.installed():
+        for i in range(n):
+            mujoco.mj_step(model, data)
+            if i >= n - last:
+                pos.append(data.xpos[1].copy())
+                fz.append(fld.wrench_of(data)[fld.body_ids, 2].sum())
+    return np.array(pos), np.array(fz), weight
+
+
+@pytest.mark.parametrize(
+    "integrator",
+    [mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtIntegrator.mjINT_IMPLICITFAST],
+    ids=["Euler", "implicitfast"],
+)
+def test_a_standing_hexapod_stays_put(integrator):
+    pos, fz, weight = stand(integrator, 1e-3, "stick")
+    assert np.abs(pos - pos[0]).max() < DRIFT_M
+    assert np.median(np.abs(np.diff(fz))) < FORCE_CHANGE * weight
+    assert fz[-1] == pytest.approx(weight, rel=1e-3)  # the medium carries the robot
+
+
+def test_without_the_mechanism_treatment_it_creeps():
+    """The same stand with low_speed="free" (the pure model for the legs): the failure the
+    treatment removes, so the test above can fail."""
+    pos, fz, weight = stand(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "free")
+    assert np.abs(pos - pos[0]).max() > 10 * DRIFT_M
+    assert np.median(np.abs(np.diff(fz))) > FORCE_CHANGE * weight
+
+
+def test_the_legs_are_treated_and_the_free_body_rule_is_not_used_for_them():
+    _, _, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
+    assert fld.mechanism_eligible.all() and not fld.stick_eligible.any()
+    assert lowspeed.LowSpeed("free").on and not lowspeed.LowSpeed("free").mechanisms
+
+
+@pytest.mark.parametrize("rig", ["plate_rig", "ellipsoid_pitch"])
+def test_a_moving_rig_feels_the_pure_model(rig):
+    forces = {}
+    for mode in ("free", "stick"):
+        model = mujoco.MjModel.from_xml_path(str(MODELS / f"{rig}.xml"))
+        data = mujoco.MjData(model)
+        if model.nkey:
+            mujoco.mj_resetDataKeyframe(model, data, 0)
+        fld = GranularField(model, n_triangles=400, low_speed=mode)
+        out = []
+        with fld.installed():
+            for _ in range(3000):
+                mujoco.mj_step(model, data)
+                out.append(fld.wrench_of(data)[fld.body_ids[0], :3].copy())
+        forces[mode] = np.array(out)
+    moving = slice(MOVING_AFTER, None)
+    peak = np.abs(forces["free"][moving]).max()
+    assert peak > 0.05  # the rig is in the medium
+    np.testing.assert_allclose(
+        forces["stick"][moving], forces["free"][moving], rtol=0, atol=RIG_FORCE_RTOL * peak
+    )
+
+
+CHAIN = """
+<mujoco>
+  <option timestep="{dt}" integrator="{integrator}"><flag contact="disable"/></option>
+  <custom>
+    <text name="mjrft:material" data="glass_beads"/>
+    <tuple name="mjrft:intruders">
+      <element objtype="geom" objname="base" prm="300"/>
+      <element objtype="geom" objname="flap" prm="300"/>
+    </tuple>
+  </custom>
+  <worldbody>
+    <body name="base" pos="0 0 0.006">
+      <freejoint/>
+      <geom name="base" type="box" size="0.02 0.015 0.006" density="2500"/>
+      <body name="flap" pos="0.03 0 0">
+        <joint name="hinge" type="hinge" axis="0 1 0" damping="1e-5"/>
+        <geom name="flap" type="box" size="0.01 0.015 0.003" pos="0 0 -0.002" density="2500"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>"""
+#: Energy gain allowed per step: 1e-9 J + 1e-6 of the chain's mechanical energy scale (the
+#: free-body tests' tolerance).
+GAIN_J, GAIN_REL = 1e-9, 1e-6
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "RK4"])
+def test_a_passive_chain_settles_and_gains_no_energy(integrator):
+    model = mujoco.MjModel.from_xml_string(CHAIN.format(dt=1e-3, integrator=integrator))
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    data = mujoco.MjData(model)
+    data.qvel[:6] = [0.02, 0.0, -0.2, 0.0, 1.0, 0.0]  # thrown in, tumbling
+    fld = GranularField(model)
+    assert fld.mechanism_eligible.all()
+    energy, held = [], 0
+    with fld.installed():
+        for _ in range(1500):
+            mujoco.mj_step(model, data)
+            mujoco.mj_energyPos(model, data)
+            mujoco.mj_energyVel(model, data)
+            energy.append(data.energy.sum())
+            held += int(np.any(fld.last_decision == lowspeed.STICK))
+    energy = np.array(energy)
+    scale = np.abs(energy).max()
+    assert np.diff(energy).max() <= GAIN_J + GAIN_REL * scale
+    assert held > 100  # the chain came to rest and was held
+    assert np.abs(data.qvel).max() < 1e-9  # and stays at rest
