@@ -19,15 +19,19 @@ intruding body i at its CoM (twist: CoM velocity, angular velocity; world) and d
    the trajectory does not depend on extra forward calls). The free velocity is
    ``u = qvel + dt M^-1 tau_other``. A body at rest under constant loads is a fixed point of
    this predictor; it is not used after a reset or a jump in time (the pure model acts once).
-2. A body keeps the pure model while it is fast and keeps its sense over ``reach`` steps, as in
-   the free-body rule, with the medium's velocity change ``J_i M^-1 sum_j J_j^T W_j`` through
-   the whole mechanism and the body's own kinetic-energy metric.
-3. The other bodies in play are held jointly: wrenches W_S with ``J_S (u + dt M^-1 (J_S^T W_S +
-   J_P^T W_P)) = 0`` (their twists end the step at zero), W_S = W_ref + the least-norm correction
-   (``A = J_S M^-1 J_S^T`` is singular wherever the mechanism cannot move a body in some
-   direction; the wrench there does no work, so it keeps its value from the previous pass, W_ref,
-   and a load cell on a stopped rig reads a constant). This is the M-orthogonal projection of the
-   free motion onto the motions that leave the held bodies at rest: it cannot add kinetic energy.
+2. A body keeps the pure model while its twist keeps its sense and changes by less than its
+   own size over ``reach`` steps under every force: with the step's predicted change
+   ``dxi = J_i (u - qvel) + dt J_i M^-1 sum_j J_j^T W_j`` (the pure model's wrenches W_j on
+   every body in the medium), ``<xi + reach dxi, xi> > 0`` and ``reach |dxi| < |xi|`` in the
+   body's own kinetic-energy metric. A steadily driven rig, whose drive balances the medium, is
+   never held.
+3. The other bodies in the medium are held jointly: wrenches W_S with ``J_S (u + dt M^-1 (J_S^T
+   W_S + J_P^T W_P)) = 0`` (their twists end the step at zero), W_S = W_ref + the least-norm
+   correction (``A = J_S M^-1 J_S^T`` is singular wherever the mechanism cannot move a body in
+   some direction; the wrench there does no work, so it keeps its value from the previous pass,
+   W_ref, and the load on a statically indeterminate stance does not jump). This is the
+   M-orthogonal projection of the free motion onto the motions that leave the held bodies at
+   rest: it cannot add kinetic energy.
 4. A held body whose hold the medium cannot supply slips: released alone it would move with
    ``xi_f = -dt A_ii W_i``; the medium's resistance to that motion R = W(xi_f) must dissipate at
    least the power the hold does, ``-R . xi_f >= -W_i . xi_f``. The body that fails by most gets
@@ -239,6 +243,7 @@ def setup(m_rec, e_rec, rows, n):
 
 @numba.njit(**_JIT)
 def row_dot(jac, r, x, nv):
+    """jac[r, :nv] . x[:nv]."""
     acc = 0.0
     for j in range(nv):
         acc += jac[r, j] * x[j]
