@@ -657,7 +657,8 @@ def plot_rig_vs_prescribed(
         _line(ax, t, force[:, i], color=color, label=f"$F_{a}$ simulated rig")
         _line(ax, prescribed.time, prescribed.force[:, i], color=color, ls="--",
               label=f"$F_{a}$ prescribed")  # fmt: skip
-    ax.set_ylim(*value_limits([*force.T, *prescribed.force.T], FORCE_FLOOR_N))
+    shown = prescribed.time <= (t[-1] if len(t) else np.inf)  # the rig's time span only
+    ax.set_ylim(*value_limits([*force.T, *prescribed.force[shown].T], FORCE_FLOOR_N))
     _time_axis(ax, t)
     ax.set(xlabel="time [s]", ylabel="RFT force on the intruder [N]")
     _head(fig, f"{title}\nworld frame", ax.get_lines(), ncol=3)
