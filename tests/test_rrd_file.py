@@ -57,6 +57,10 @@ def test_a_cut_recording_reads_back_its_complete_messages(recording, tmp_path, f
         with pytest.raises(RuntimeError, match="exceeds file size"):
             list(RrdReader(str(cut)).stream())
     copy = tmp_path / "salvaged.rrd"
+    if found.messages == 0:  # cut inside the first message (how rerun batched it varies)
+        with pytest.raises(ValueError, match="no complete message"):
+            rrd_file.salvage(cut, copy)
+        return
     assert rrd_file.salvage(cut, copy) == found
     assert copy.read_bytes() == data[: found.complete]  # a prefix, byte for byte
     full, kept = _rows_per_entity(recording), _rows_per_entity(copy)

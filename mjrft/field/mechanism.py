@@ -206,6 +206,55 @@ def gather(m_rec, e_rec, rows):
 
 
 @numba.njit(**_JIT)
+def actuator_force(m, d, a):
+    """Force of actuator a at this state by MuJoCo's rule for fixed/affine gains and affine
+    biases: gain (x, L, V) x + bias (L, V), x its activation or clamped control, clamped to its
+    force range."""
+    if m.opt_disableflags[0] & m.dsbl_actuation:
+        return 0.0
+    adr = m.actuator_actadr[a]
+    if adr >= 0:
+        x = d.act[adr]
+    else:
+        x = d.ctrl[a]
+        if m.actuator_ctrllimited[a] and not m.opt_disableflags[0] & m.dsbl_clampctrl:
+            x = min(max(x, m.actuator_ctrlrange[a, 0]), m.actuator_ctrlrange[a, 1])
+    length, velocity = d.actuator_length[a], d.actuator_velocity[a]
+    g, b = m.actuator_gainprm[a], m.actuator_biasprm[a]
+    gain = g[0] + (g[1] * length + g[2] * velocity if m.actuator_gainaffine[a] else 0.0)
+    bias = b[0] + b[1] * length + b[2] * velocity if m.actuator_biasaffine[a] else 0.0
+    f = gain * x + bias
+    if m.actuator_forcelimited[a]:
+        f = min(max(f, m.actuator_forcerange[a, 0]), m.actuator_forcerange[a, 1])
+    return f
+
+
+@numba.njit(**_JIT)
+def actuator_forces(m_rec, e_rec, out):
+    """out (nu,) = ``actuator_force`` of every actuator at the MjData's state (NaN for those
+    whose force the rule does not cover); for checking the rule against MuJoCo's own."""
+    m, d, _ = unpack(m_rec, e_rec)
+    for a in range(m.nu):
+        out[a] = actuator_force(m, d, a) if m.actuator_affine[a] else np.nan
+
+
+@numba.njit(**_JIT)
+def actuator_update(m, d, s, tau):
+    """tau (nv,) += the change of the affine actuators' generalized force since the loads were
+    read: this state's force (``actuator_force``) minus the previous pass's, through this
+    state's moments. A stiff servo's force then follows the step it responds to."""
+    for a in range(m.nu):
+        if not m.actuator_affine[a]:
+            continue
+        df = actuator_force(m, d, a) - s.mech_in_force[a]
+        if df == 0.0:
+            continue
+        start = d.moment_rowadr[a]
+        for q in range(start, start + d.moment_rownnz[a]):
+            tau[d.moment_colind[q]] += d.actuator_moment[q] * df
+
+
+@numba.njit(**_JIT)
 def setup(m_rec, e_rec, rows, n):
     """Factor M = L L^T (s.mech_L), Jacobians (s.mech_J), Y = L^-1 J^T as rows (s.mech_X),
     A = J M^-1 J^T = Y^T Y (s.mech_A), and the free velocity u (s.mech_vec[0]). Returns False if
@@ -220,6 +269,7 @@ def setup(m_rec, e_rec, rows, n):
         for j in range(nv):
             acc += lo[i, j] * s.mech_in[0, j]
         u[i] = acc
+    actuator_update(m, d, s, u)
     if not cholesky(lo, nv, 0.0):
         return False
     cho_solve(lo, nv, u)
@@ -430,6 +480,7 @@ def treat_mechanisms(m_rec, e_rec):
         s.mech_in[0] = d.qacc
         s.mech_in[1] = s.mech_tau
         s.mech_in_prev[:] = s.mech_prev
+        s.mech_in_force[:] = d.actuator_force
         s.mech_in_held[:] = s.mech_held
     rows = np.empty(nk, dtype=np.int64)
     n = gather(m_rec, e_rec, rows)

@@ -138,6 +138,20 @@ class StaticTables:
         return np.uint64(self.record.ctypes.data)
 
 
+GAIN_FIXED, GAIN_AFFINE = int(mujoco.mjtGain.mjGAIN_FIXED), int(mujoco.mjtGain.mjGAIN_AFFINE)
+BIAS_NONE, BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)
+
+
+def _affine_actuators(model: mujoco.MjModel) -> np.ndarray:
+    """(nu,) True for the actuators whose force mjrft.field.mechanism predicts at the current
+    state: fixed or affine gain, no or affine bias, activation not used early."""
+    return (
+        np.isin(model.actuator_gaintype, (GAIN_FIXED, GAIN_AFFINE))
+        & np.isin(model.actuator_biastype, (BIAS_NONE, BIAS_AFFINE))
+        & ~model.actuator_actearly.astype(bool)
+    )
+
+
 def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
     out = np.zeros((len(bodies), model.nv), dtype=np.int64)
     for k, be in enumerate(bodies):
@@ -191,6 +205,12 @@ def build_tables(
         "M_rownnz": ((model.nv,), i8, model.M_rownnz),
         "M_rowadr": ((model.nv,), i8, model.M_rowadr),
         "M_colind": ((len(model.M_colind),), i8, model.M_colind),
+        "actuator_affine": ((model.nu,), i8, _affine_actuators(model)),
+        "actuator_gainaffine": ((model.nu,), i8, model.actuator_gaintype == GAIN_AFFINE),
+        "actuator_biasaffine": ((model.nu,), i8, model.actuator_biastype == BIAS_AFFINE),
+        "actuator_actadr": ((model.nu,), i8, model.actuator_actadr),
+        "actuator_ctrllimited": ((model.nu,), i8, model.actuator_ctrllimited),
+        "actuator_forcelimited": ((model.nu,), i8, model.actuator_forcelimited),
     })  # fmt: skip
     addr = layout.model_addresses(model)
     material = scene.material
@@ -239,6 +259,20 @@ def build_tables(
         M_rownnz=small["M_rownnz"],
         M_rowadr=small["M_rowadr"],
         M_colind=small["M_colind"],
+        nu=model.nu,
+        nJmom=model.nJmom,
+        dsbl_actuation=int(mujoco.mjtDisableBit.mjDSBL_ACTUATION),
+        dsbl_clampctrl=int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL),
+        actuator_affine=small["actuator_affine"],
+        actuator_gainaffine=small["actuator_gainaffine"],
+        actuator_biasaffine=small["actuator_biasaffine"],
+        actuator_actadr=small["actuator_actadr"],
+        actuator_ctrllimited=small["actuator_ctrllimited"],
+        actuator_forcelimited=small["actuator_forcelimited"],
+        actuator_gainprm=model.actuator_gainprm,
+        actuator_biasprm=model.actuator_biasprm,
+        actuator_ctrlrange=model.actuator_ctrlrange,
+        actuator_forcerange=model.actuator_forcerange,
     )
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies)}
     return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))

@@ -29,7 +29,7 @@ from mjrft.field.tables import (
 )
 
 
-def _mjdata_arrays(data: mujoco.MjData | None, fm) -> tuple:
+def _mjdata_arrays(data: mujoco.MjData | None, fm, na: int) -> tuple:
     """MjDataArrays views of data (with the address of data.time), or zero stand-ins."""
     nbody, ngeom, nv = fm.nbody, fm.ngeom, fm.nv
     if data is None:  # a batch thread's state: the batch passes each copy's arrays itself
@@ -38,12 +38,17 @@ def _mjdata_arrays(data: mujoco.MjData | None, fm) -> tuple:
             *(np.zeros((nbody, 3, 3)), np.zeros((nbody, 6)), np.zeros((nbody, 3))),
             np.zeros((ngeom, 3)), np.zeros(1), np.zeros((nbody, 6)),
             np.zeros(fm.nC), np.zeros(nv), np.zeros(nv), np.zeros((nv, 6)),
+            np.zeros(fm.nu), np.zeros(max(1, na)), np.zeros(fm.nu), np.zeros(fm.nu),
+            np.zeros(fm.nu), np.zeros(fm.nJmom), np.zeros(fm.nu, np.int32),
+            np.zeros(fm.nu, np.int32), np.zeros(fm.nJmom, np.int32),
         )  # fmt: skip
         return arrays, arrays.time.ctypes.data
     arrays = MjDataArrays(
         data.xpos, data.xmat.reshape(nbody, 3, 3), data.xipos, data.ximat.reshape(nbody, 3, 3),
         data.cvel, data.subtree_com, data.geom_xpos, np.zeros(1), data.xfrc_applied,
-        data.M, data.qvel, data.qacc, data.cdof,
+        data.M, data.qvel, data.qacc, data.cdof, data.ctrl, data.act, data.actuator_length,
+        data.actuator_velocity, data.actuator_force, data.actuator_moment, data.moment_rownnz,
+        data.moment_rowadr, data.moment_colind,
     )  # fmt: skip
     return arrays, layout.time_address(data)
 
@@ -73,7 +78,8 @@ class DataState:
         self.owned = False
         self.registered = False
         self.finalizer: weakref.finalize | None = None
-        self.mjdata, time_address = _mjdata_arrays(data, fm)
+        na = int(tables.model.na)
+        self.mjdata, time_address = _mjdata_arrays(data, fm, na)
         nv = fm.nv
         f8, i8 = np.float64, np.int64
         small = arena({  # touched every pass: side by side (tables.arena)
@@ -87,6 +93,7 @@ class DataState:
             "mech_prev": ((nk, 6), f8, 0), "mech_held": ((nk,), i8, 0),
             "mech_R": ((nk, 6), f8, 0), "mech_key": ((nk, 19), f8, 0),
             "mech_in": ((2, nv), f8, 0), "mech_in_prev": ((nk, 6), f8, 0),
+            "mech_in_force": ((fm.nu,), f8, 0),
             "mech_in_held": ((nk,), i8, 0),
         })  # fmt: skip
         self.arrays = FieldData(
@@ -103,7 +110,7 @@ class DataState:
             mech_S=np.zeros((6 * nk, 6 * nk)),
             mech_vec=np.zeros((3, max(nv, 6 * nk))),
         )
-        self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring})
+        self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring, "na": na})
         self.entry["time"] = time_address
         if data is not None:  # views of an MjData keep it alive: keep only their addresses
             self.mjdata = None

@@ -87,6 +87,20 @@ class FieldModel(NamedTuple):
     M_rownnz: np.ndarray  # (nv,) MuJoCo's layout of M (lower triangle, CSR), int64
     M_rowadr: np.ndarray  # (nv,)
     M_colind: np.ndarray  # (nC,)
+    nu: int  # MuJoCo's nu
+    nJmom: int  # MuJoCo's nJmom (size of actuator_moment)
+    dsbl_actuation: int  # mjtDisableBit.mjDSBL_ACTUATION
+    dsbl_clampctrl: int  # mjtDisableBit.mjDSBL_CLAMPCTRL
+    actuator_affine: np.ndarray  # (nu,) 1: gain fixed/affine, bias none/affine, not actearly
+    actuator_gainaffine: np.ndarray  # (nu,) 1 if its gain is affine (else fixed)
+    actuator_biasaffine: np.ndarray  # (nu,) 1 if its bias is affine (else none)
+    actuator_actadr: np.ndarray  # (nu,) its activation's address in act (-1: input is ctrl)
+    actuator_ctrllimited: np.ndarray  # (nu,)
+    actuator_forcelimited: np.ndarray  # (nu,)
+    actuator_gainprm: np.ndarray  # (nu, 10) live
+    actuator_biasprm: np.ndarray  # (nu, 10) live
+    actuator_ctrlrange: np.ndarray  # (nu, 2) live
+    actuator_forcerange: np.ndarray  # (nu, 2) live
 
 
 class MjDataArrays(NamedTuple):
@@ -105,6 +119,15 @@ class MjDataArrays(NamedTuple):
     qvel: np.ndarray  # (nv,)
     qacc: np.ndarray  # (nv,): the previous forward pass's, when the passive callback runs
     cdof: np.ndarray  # (nv, 6)
+    ctrl: np.ndarray  # (nu,)
+    act: np.ndarray  # (na,)
+    actuator_length: np.ndarray  # (nu,): this state's (the transmission runs before passive)
+    actuator_velocity: np.ndarray  # (nu,): this state's
+    actuator_force: np.ndarray  # (nu,): the previous forward pass's
+    actuator_moment: np.ndarray  # (nJmom,) this state's, sparse rows
+    moment_rownnz: np.ndarray  # (nu,) int32
+    moment_rowadr: np.ndarray  # (nu,) int32
+    moment_colind: np.ndarray  # (nJmom,) int32
 
 
 class FieldData(NamedTuple):
@@ -137,6 +160,7 @@ class FieldData(NamedTuple):
     mech_held: np.ndarray  # (ntbody,) 1 if held in the last pass
     mech_in: np.ndarray  # (2, nv) qacc and mech_tau as the first pass at this time read them
     mech_in_prev: np.ndarray  # (ntbody, 6) mech_prev as that pass read it
+    mech_in_force: np.ndarray  # (nu,) actuator_force as that pass read it
     mech_in_held: np.ndarray  # (ntbody,) mech_held as that pass read it
     mech_R: np.ndarray  # (ntbody, 6) the medium's resistance last evaluated for a hold
     mech_key: np.ndarray  # (ntbody, 19) where: CoM, inertial frame, direction; 1 if valid
@@ -156,7 +180,7 @@ _MODEL_SIZES = ("nelem", "ntgeom", "ntbody")
 _FLOAT_SCALARS = {"surface_z", "zeta", "alpha_y", "reach", "jacobian_step", "rk4_hold_steps"}
 _INT_SCALARS = {
     "nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4", "nv",
-    "nC", "mech",
+    "nC", "mech", "nu", "nJmom", "dsbl_actuation", "dsbl_clampctrl",
 }  # fmt: skip
 
 
@@ -175,7 +199,7 @@ def _record(fields: tuple[str, ...], sizes: tuple[str, ...]) -> np.dtype:
 
 MODEL_RECORD = _record(FieldModel._fields, _MODEL_SIZES)
 #: Per-MjData entry: the MjData's arrays, then the field's state for it.
-ENTRY_RECORD = _record(MjDataArrays._fields + FieldData._fields, ("nring",))
+ENTRY_RECORD = _record(MjDataArrays._fields + FieldData._fields, ("nring", "na"))
 ENTRY_SIZE = ENTRY_RECORD.itemsize
 
 
@@ -235,6 +259,11 @@ def _i(address, shape):
 
 
 @numba.njit(**_JIT)
+def _i32(address, shape):
+    return numba.carray(i32_ptr(address), shape)
+
+
+@numba.njit(**_JIT)
 def unpack_model(address):
     """FieldModel from the address of its MODEL_RECORD."""
     t = numba.carray(_model_ptr(address), 1)[0]
@@ -251,7 +280,13 @@ def unpack_model(address):
         numba.carray(i32_ptr(t.opt_disableflags), 1), numba.carray(i32_ptr(t.opt_integrator), 1),
         _f(t.body_mass, nb), _f(t.body_inertia, (nb, 3)), _f(t.body_gravcomp, nb),
         t.nv, t.nC, t.mech, _i(t.tbody_mech, nk), _i(t.tbody_dofmask, (nk, t.nv)),
-        _i(t.M_rownnz, t.nv), _i(t.M_rowadr, t.nv), _i(t.M_colind, t.nC),
+        _i(t.M_rownnz, t.nv), _i(t.M_rowadr, t.nv), _i(t.M_colind, t.nC), t.nu, t.nJmom,
+        t.dsbl_actuation, t.dsbl_clampctrl, _i(t.actuator_affine, t.nu),
+        _i(t.actuator_gainaffine, t.nu), _i(t.actuator_biasaffine, t.nu),
+        _i(t.actuator_actadr, t.nu), _i(t.actuator_ctrllimited, t.nu),
+        _i(t.actuator_forcelimited, t.nu), _f(t.actuator_gainprm, (t.nu, 10)),
+        _f(t.actuator_biasprm, (t.nu, 10)), _f(t.actuator_ctrlrange, (t.nu, 2)),
+        _f(t.actuator_forcerange, (t.nu, 2)),
     )  # fmt: skip
 
 
@@ -266,6 +301,9 @@ def unpack_entry(m, address):
         _f(t.ximat, (nb, 3, 3)), _f(t.cvel, (nb, 6)), _f(t.subtree_com, (nb, 3)),
         _f(t.geom_xpos, (m.ngeom, 3)), _f(t.time, 1), _f(t.xfrc_applied, (nb, 6)),
         _f(t.M, m.nC), _f(t.qvel, m.nv), _f(t.qacc, m.nv), _f(t.cdof, (m.nv, 6)),
+        _f(t.ctrl, m.nu), _f(t.act, t.na), _f(t.actuator_length, m.nu),
+        _f(t.actuator_velocity, m.nu), _f(t.actuator_force, m.nu), _f(t.actuator_moment, m.nJmom),
+        _i32(t.moment_rownnz, m.nu), _i32(t.moment_rowadr, m.nu), _i32(t.moment_colind, m.nJmom),
     )  # fmt: skip
     s = FieldData(
         _f(t.user, (nb, 6)), _f(t.written, (nb, 6)), _f(t.user_in, (nb, 6)),
@@ -276,7 +314,8 @@ def unpack_entry(m, address):
         _f(t.ring, (t.nring + 1, 2, nk, 6)), _f(t.report_wrench, (nb, 6)),
         _i(t.report_decision, nk), _f(t.mech_tau, nv), _f(t.mech_time, 3),
         _f(t.mech_prev, (nk, 6)), _i(t.mech_held, nk), _f(t.mech_in, (2, nv)),
-        _f(t.mech_in_prev, (nk, 6)), _i(t.mech_in_held, nk), _f(t.mech_R, (nk, 6)),
+        _f(t.mech_in_prev, (nk, 6)), _f(t.mech_in_force, m.nu), _i(t.mech_in_held, nk),
+        _f(t.mech_R, (nk, 6)),
         _f(t.mech_key, (nk, 19)), _f(t.mech_L, (nv, nv)),
         _f(t.mech_J, (6 * nk, nv)), _f(t.mech_X, (6 * nk, nv)), _f(t.mech_A, (6 * nk, 6 * nk)),
         _f(t.mech_S, (6 * nk, 6 * nk)), _f(t.mech_vec, (3, max(nv, 6 * nk))),
