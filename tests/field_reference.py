@@ -6,7 +6,8 @@ Here the same rules are written plainly in NumPy, one function per rule:
 
 * the low-speed treatment of a free rigid body (:func:`treat` and its parts; any wrench law);
 * the treatment of bodies in mechanisms (:func:`mechanism_wrenches`, from MuJoCo's own
-  ``mj_fullM`` and ``mj_jacBodyCom`` and dense NumPy solves);
+  ``mj_fullM`` and ``mj_jacBodyCom``, dense NumPy solves, and MuJoCo's affine actuator rule
+  written plainly, :func:`affine_actuator_force`);
 * the RK4 stage rule (:func:`rk4_stage_held`, :class:`ReferenceField`);
 * the ``xfrc_applied`` ownership protocol (:class:`ReferenceField`);
 * the pure model on a tagged body from ``mjrft.element_forces`` (:func:`body_wrench_at`).
@@ -419,6 +420,52 @@ def treated_wrench(field, data, user) -> tuple[np.ndarray, list[int], dict[int, 
     return w, decisions, modes
 
 
+def affine_actuator_force(m: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """(nu,) force of each actuator at data's state by MuJoCo's rule for fixed or affine gains and
+    no or affine biases (NaN for the others): gain(x, L, V) x + bias(L, V), x the activation (or
+    the control, clamped to ctrlrange), clamped to forcerange."""
+    out = np.full(m.nu, np.nan)
+    flags = m.opt.disableflags
+    for a in range(m.nu):
+        gaintype, biastype = int(m.actuator_gaintype[a]), int(m.actuator_biastype[a])
+        if gaintype not in (int(mujoco.mjtGain.mjGAIN_FIXED), int(mujoco.mjtGain.mjGAIN_AFFINE)):
+            continue
+        if biastype not in (int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)):
+            continue
+        if m.actuator_actearly[a]:
+            continue
+        if flags & mujoco.mjtDisableBit.mjDSBL_ACTUATION:
+            out[a] = 0.0
+            continue
+        if m.actuator_actadr[a] >= 0:
+            x = data.act[m.actuator_actadr[a]]
+        else:
+            x = data.ctrl[a]
+            if m.actuator_ctrllimited[a] and not flags & mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL:
+                x = np.clip(x, *m.actuator_ctrlrange[a])
+        length, velocity = data.actuator_length[a], data.actuator_velocity[a]
+        g, b = m.actuator_gainprm[a], m.actuator_biasprm[a]
+        affine_gain = gaintype == int(mujoco.mjtGain.mjGAIN_AFFINE)
+        gain = g[0] + (g[1] * length + g[2] * velocity if affine_gain else 0.0)
+        affine_bias = biastype == int(mujoco.mjtBias.mjBIAS_AFFINE)
+        bias = b[0] + b[1] * length + b[2] * velocity if affine_bias else 0.0
+        f = gain * x + bias
+        out[a] = np.clip(f, *m.actuator_forcerange[a]) if m.actuator_forcelimited[a] else f
+    return out
+
+
+def actuator_update(m: mujoco.MjModel, data: mujoco.MjData, force_prev: np.ndarray) -> np.ndarray:
+    """(nv,) change of the affine actuators' generalized force from force_prev (nu,) to this
+    state's, through this state's moments (dense: actuator_moment expanded)."""
+    change = np.nan_to_num(affine_actuator_force(m, data) - force_prev, nan=0.0)
+    tau = np.zeros(m.nv)
+    for a in range(m.nu):
+        start = data.moment_rowadr[a]
+        cols = data.moment_colind[start : start + data.moment_rownnz[a]]
+        tau[cols] += data.actuator_moment[start : start + data.moment_rownnz[a]] * change[a]
+    return tau
+
+
 def body_metric(field, data, b: int) -> tuple[float, np.ndarray]:
     """(mass, world inertia (3, 3)) of body b: the metric of its twists."""
     x = data.ximat[b].reshape(3, 3)
@@ -433,13 +480,14 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
     t = float(data.time)
     t0 = st.get("mech_time")
     if t0 is not None and t == t0:  # a repeated pass reads what the first pass at t read
-        valid, qacc, tau_prev, held_before, prev = st["mech_in"]
+        valid, qacc, tau_prev, held_before, prev, force_prev = st["mech_in"]
     else:
         valid = t0 is not None and abs(t - (t0 + dt)) <= 1e-9 * dt + 1e-12 * abs(t)
         qacc = np.array(data.qacc)
         tau_prev = st.get("mech_tau", np.zeros(nv))
         held_before, prev = st.get("mech_held", {}), st.get("mech_prev", {})
-        st["mech_in"] = (valid, qacc, tau_prev, held_before, prev)
+        force_prev = np.array(data.actuator_force)
+        st["mech_in"] = (valid, qacc, tau_prev, held_before, prev, force_prev)
     st["mech_time"] = t
     rows = [
         k for k, be in enumerate(field.bodies)
@@ -458,7 +506,8 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
         mujoco.mj_jacBodyCom(m, data, jp, jr, field.bodies[k].body)
         jac.append(np.vstack([jp, jr]))
     J = np.vstack(jac)  # (6n, nv)
-    u = data.qvel + dt * np.linalg.solve(M, M @ qacc - tau_prev)
+    tau_other = M @ qacc - tau_prev + actuator_update(m, data, force_prev)
+    u = data.qvel + dt * np.linalg.solve(M, tau_other)
     A = J @ np.linalg.solve(M, J.T)
     bodies = [field.bodies[k].body for k in rows]
     n = len(rows)

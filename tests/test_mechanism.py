@@ -194,3 +194,58 @@ def test_a_rig_stopped_mid_stroke_holds_still_with_its_load_cell_constant():
     assert chatter > 1.0  # N: what the treatment removes
     assert np.abs(np.diff(held, axis=0)).max() < FORCE_CHANGE * np.abs(held).max()
     assert np.ptp(z) < 1e-9 and np.abs(held[-1, 2]) > 1.0  # still, and loaded by the medium
+
+
+def test_the_compiled_pass_follows_the_plain_reference_on_the_standing_hexapod():
+    """Six legs and the belly held by the medium, their hip servos nudged (within what the holds
+    supply, so that no body slips): from one settled
+    state, the compiled pass against field_reference.mechanism_wrenches (MuJoCo's mj_fullM and
+    mj_jacBodyCom, dense solves, the actuator rule written plainly), states and decisions.
+
+    From the settled state on, not from the fall into the sand: a slipping body's wrench is the
+    medium's force at a direction computed in two orders of operations, and one triangle on the
+    leading/trailing boundary can flip between them (a 3 mN jump on a 1 N leg)."""
+    import copy
+
+    import field_reference as ref
+
+    model, data, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
+    with fld.installed():
+        for _ in range(1500):
+            mujoco.mj_step(model, data)
+    twin = copy.copy(data)
+    a = fld._state(data).arrays
+    reference = ref.ReferenceField(fld)
+    rows = fld.body_ids
+    reference.state[twin._address] = {
+        "user": np.zeros((len(rows), 6)), "written": np.array(data.xfrc_applied[rows]),
+        "record": [0.0, 0.0], "modes": {}, "mech_time": float(a.mech_time[0]),
+        "mech_tau": a.mech_tau.copy(),
+        "mech_held": {k: True for k in range(len(rows)) if a.mech_held[k]},
+        "mech_prev": {k: a.mech_prev[k].copy() for k in range(len(rows)) if a.mech_held[k]},
+    }  # fmt: skip
+
+    def nudged(d, i):
+        if i == 100:
+            d.act[:] += 1e-4  # every hip's setpoint moves by 0.1 mrad: the holds follow
+
+    fast, fast_dec = [], []
+    with fld.installed():
+        for i in range(300):
+            nudged(data, i)
+            mujoco.mj_step(model, data)
+            fast.append(np.concatenate([data.qpos, data.qvel]))
+            fast_dec.append(list(map(int, fld.last_decision)))
+    slow, slow_dec = [], []
+    mujoco.set_mjcb_passive(reference.apply)
+    try:
+        for i in range(300):
+            nudged(twin, i)
+            mujoco.mj_step(model, twin)
+            slow.append(np.concatenate([twin.qpos, twin.qvel]))
+            slow_dec.append(list(reference.decisions))
+    finally:
+        mujoco.set_mjcb_passive(None)
+    np.testing.assert_allclose(np.array(fast), np.array(slow), rtol=1e-6, atol=1e-12)
+    assert fast_dec == slow_dec
+    assert sum(d.count(lowspeed.STICK) for d in slow_dec) > 300  # bodies were held

@@ -16,9 +16,13 @@ intruding body i at its CoM (twist: CoM velocity, angular velocity; world) and d
    (``qacc`` still holds the previous forward pass's acceleration when the passive callback runs;
    ``tau_field_prev = sum J_i^T W_i`` is what the field applied then; a repeated pass at the
    same time, ``mj_forward`` before ``mj_step``, reads what the first pass at that time read, so
-   the trajectory does not depend on extra forward calls). The free velocity is
-   ``u = qvel + dt M^-1 tau_other``. A body at rest under constant loads is a fixed point of
-   this predictor; it is not used after a reset or a jump in time (the pure model acts once).
+   the trajectory does not depend on extra forward calls). The actuators with fixed or affine
+   gains and affine biases (servos, motors) are brought to this state: their force at this
+   state's control, activation, length and velocity (MuJoCo's affine rule, ``actuator_force``)
+   replaces the previous pass's through this state's moments, so a stiff servo's response to
+   the last step is not a step late. The free velocity is ``u = qvel + dt M^-1 tau_other``.
+   A body at rest under constant loads is a fixed point of this predictor; it is not used after
+   a reset or a jump in time (the pure model acts once).
 2. A body keeps the pure model while its twist keeps its sense and changes by less than its
    own size over ``reach`` steps under every force: with the step's predicted change
    ``dxi = J_i (u - qvel) + dt J_i M^-1 sum_j J_j^T W_j`` (the pure model's wrenches W_j on
