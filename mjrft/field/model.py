@@ -152,6 +152,25 @@ def _affine_actuators(model: mujoco.MjModel) -> np.ndarray:
     )
 
 
+def _mechanism_specs(model: mujoco.MjModel, bodies, mech: np.ndarray) -> dict:
+    """tables.arena specs of the static arrays of mjrft.field.mechanism: which bodies it treats,
+    the dofs that move them, the layout of M and the actuators it brings to the state."""
+    i8, nk, nv, nu = np.int64, len(bodies), model.nv, model.nu
+    return {
+        "tbody_mech": ((nk,), i8, np.asarray(mech, dtype=i8)),
+        "tbody_dofmask": ((nk, nv), i8, _dof_masks(model, bodies)),
+        "M_rownnz": ((nv,), i8, model.M_rownnz),
+        "M_rowadr": ((nv,), i8, model.M_rowadr),
+        "M_colind": ((len(model.M_colind),), i8, model.M_colind),
+        "actuator_affine": ((nu,), i8, _affine_actuators(model)),
+        "actuator_gainaffine": ((nu,), i8, model.actuator_gaintype == GAIN_AFFINE),
+        "actuator_biasaffine": ((nu,), i8, model.actuator_biastype == BIAS_AFFINE),
+        "actuator_actadr": ((nu,), i8, model.actuator_actadr),
+        "actuator_ctrllimited": ((nu,), i8, model.actuator_ctrllimited),
+        "actuator_forcelimited": ((nu,), i8, model.actuator_forcelimited),
+    }
+
+
 def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
     out = np.zeros((len(bodies), model.nv), dtype=np.int64)
     for k, be in enumerate(bodies):
@@ -200,43 +219,22 @@ def build_tables(
         "tbody_treat": ((nk,), i8, np.asarray(treat, dtype=i8)),
         "region": ((2, 3), f8, np.zeros((2, 3)) if scene.region is None else scene.region),
         "coef": ((18,), f8, material_coef(scene.material, material_key)),
-        "tbody_mech": ((nk,), i8, np.asarray(mech, dtype=i8)),
-        "tbody_dofmask": ((nk, model.nv), i8, _dof_masks(model, bodies)),
-        "M_rownnz": ((model.nv,), i8, model.M_rownnz),
-        "M_rowadr": ((model.nv,), i8, model.M_rowadr),
-        "M_colind": ((len(model.M_colind),), i8, model.M_colind),
-        "actuator_affine": ((model.nu,), i8, _affine_actuators(model)),
-        "actuator_gainaffine": ((model.nu,), i8, model.actuator_gaintype == GAIN_AFFINE),
-        "actuator_biasaffine": ((model.nu,), i8, model.actuator_biastype == BIAS_AFFINE),
-        "actuator_actadr": ((model.nu,), i8, model.actuator_actadr),
-        "actuator_ctrllimited": ((model.nu,), i8, model.actuator_ctrllimited),
-        "actuator_forcelimited": ((model.nu,), i8, model.actuator_forcelimited),
+        **_mechanism_specs(model, bodies, mech),
     })  # fmt: skip
     addr = layout.model_addresses(model)
     material = scene.material
     region = scene.region
     arrays = FieldModel(
+        **small,  # the arrays carved side by side above
         nbody=model.nbody,
         ngeom=model.ngeom,
         elem_pos=f64(np.concatenate([be.centroids for be in bodies])),
         elem_normal=f64(np.concatenate([be.normals for be in bodies])),
         elem_area=f64(np.concatenate([be.areas for be in bodies])),
-        tgeom_geomid=small["tgeom_geomid"],
-        tgeom_tbody=small["tgeom_tbody"],
-        tgeom_elemadr=small["tgeom_elemadr"],
-        tgeom_elemnum=small["tgeom_elemnum"],
-        tgeom_rbound=small["tgeom_rbound"],
-        tbody_bodyid=small["tbody_bodyid"],
-        tbody_rootid=small["tbody_rootid"],
-        tbody_geomadr=small["tbody_geomadr"],
-        tbody_geomnum=small["tbody_geomnum"],
-        tbody_treat=small["tbody_treat"],
         surface_z=float(scene.surface_z),
         use_region=int(region is not None),
-        region=small["region"],
         zeta=float(material.zeta),
         alpha_y=float(material.alpha_y0),
-        coef=small["coef"],
         material_key=int(material_key),
         treat=int(scene.low_speed.on),
         reach=float(scene.low_speed.reach),
@@ -254,21 +252,10 @@ def build_tables(
         nv=model.nv,
         nC=len(model.M_colind),
         mech=int(np.any(mech)),
-        tbody_mech=small["tbody_mech"],
-        tbody_dofmask=small["tbody_dofmask"],
-        M_rownnz=small["M_rownnz"],
-        M_rowadr=small["M_rowadr"],
-        M_colind=small["M_colind"],
         nu=model.nu,
         nJmom=model.nJmom,
         dsbl_actuation=int(mujoco.mjtDisableBit.mjDSBL_ACTUATION),
         dsbl_clampctrl=int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL),
-        actuator_affine=small["actuator_affine"],
-        actuator_gainaffine=small["actuator_gainaffine"],
-        actuator_biasaffine=small["actuator_biasaffine"],
-        actuator_actadr=small["actuator_actadr"],
-        actuator_ctrllimited=small["actuator_ctrllimited"],
-        actuator_forcelimited=small["actuator_forcelimited"],
         actuator_gainprm=model.actuator_gainprm,
         actuator_biasprm=model.actuator_biasprm,
         actuator_ctrlrange=model.actuator_ctrlrange,
