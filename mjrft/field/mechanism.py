@@ -76,6 +76,10 @@ HOLD_REGULARISATION = 1e-12
 #: direction by about that fraction, far less than the margins the check decides on, and the
 #: reuse halves the treatment's cost on a standing robot (benchmarks/standing.py).
 RESISTANCE_REUSE_M, RESISTANCE_REUSE_RAD = 1e-9, 1e-2
+#: The factors of M and of the holds' system are kept while the configuration (cdof, CoMs) moves
+#: less than this [m, dimensionless]: a body at rest moves ~1e-17 m a step; 1e-12 m of motion
+#: changes the factors by ~1e-11 of themselves.
+CONFIGURATION_REUSE = 1e-12
 _JIT = {"cache": True, "error_model": "numpy"}
 
 
@@ -261,39 +265,74 @@ def actuator_update(m, d, s, tau):
 
 
 @numba.njit(**_JIT)
+def same_configuration(m, d, s, rows, n):
+    """True if the bodies in the medium and the configuration (cdof, their CoMs and their
+    roots' subtree CoMs, within CONFIGURATION_REUSE) are those of the stored factors; else
+    stores this configuration and returns False."""
+    cfg = s.mech_cfg
+    nk = m.tbody_bodyid.shape[0]
+    key = np.empty(cfg.shape[0])
+    key[0] = n
+    for a in range(nk):
+        key[1 + a] = rows[a] if a < n else -1.0
+    p = 1 + nk
+    for j in range(m.nv):
+        for c in range(6):
+            key[p] = d.cdof[j, c]
+            p += 1
+    for a in range(nk):
+        k = rows[a] if a < n else -1
+        for c in range(3):
+            key[p + c] = d.xipos[m.tbody_bodyid[k], c] if k >= 0 else 0.0
+            key[p + 3 + c] = d.subtree_com[m.tbody_rootid[k], c] if k >= 0 else 0.0
+        p += 6
+    same = cfg[0] >= 0.0
+    for q in range(key.shape[0]):
+        same = same and abs(key[q] - cfg[q]) <= CONFIGURATION_REUSE
+    if not same:
+        cfg[:] = key
+        s.mech_hkey[0] = -1  # the held rows' factor belongs to the old configuration
+    return same
+
+
+@numba.njit(**_JIT)
 def setup(m_rec, e_rec, rows, n):
     """Factor M = L L^T (s.mech_L), Jacobians (s.mech_J), Y = L^-1 J^T as rows (s.mech_X),
-    A = J M^-1 J^T = Y^T Y (s.mech_A), and the free velocity u (s.mech_vec[0]). Returns False if
-    M is not positive definite."""
+    A = J M^-1 J^T = Y^T Y (s.mech_A), unless the configuration is the last pass's
+    (``same_configuration``); and the free velocity u (s.mech_vec[0]). Returns False if M is not
+    positive definite."""
     m, d, s = unpack(m_rec, e_rec)
     nv, dt = m.nv, m.opt_timestep[0]
     lo = s.mech_L
-    full_inertia(m, d, lo)
+    if not same_configuration(m, d, s, rows, n):
+        full_inertia(m, d, s.mech_M)
+        lo[:] = s.mech_M
+        if not cholesky(lo, nv, 0.0):
+            s.mech_cfg[0] = -1.0
+            return False
+        for a in range(n):
+            body_jacobian(m, d, rows[a], 6 * a, s.mech_J)
+        for r in range(6 * n):
+            for j in range(nv):
+                s.mech_X[r, j] = s.mech_J[r, j]
+            forward_solve(lo, nv, s.mech_X[r])
+        for r in range(6 * n):
+            for c in range(r, 6 * n):
+                acc = 0.0
+                for j in range(nv):
+                    acc += s.mech_X[r, j] * s.mech_X[c, j]
+                s.mech_A[r, c] = acc
+                s.mech_A[c, r] = acc
     u = s.mech_vec[0]
     for i in range(nv):  # tau_other = M qacc_prev - tau_field_prev
         acc = -s.mech_in[1, i]
         for j in range(nv):
-            acc += lo[i, j] * s.mech_in[0, j]
+            acc += s.mech_M[i, j] * s.mech_in[0, j]
         u[i] = acc
     actuator_update(m, d, s, u)
-    if not cholesky(lo, nv, 0.0):
-        return False
     cho_solve(lo, nv, u)
     for i in range(nv):
         u[i] = d.qvel[i] + dt * u[i]
-    for a in range(n):
-        body_jacobian(m, d, rows[a], 6 * a, s.mech_J)
-    for r in range(6 * n):
-        for j in range(nv):
-            s.mech_X[r, j] = s.mech_J[r, j]
-        forward_solve(lo, nv, s.mech_X[r])
-    for r in range(6 * n):
-        for c in range(r, 6 * n):
-            acc = 0.0
-            for j in range(nv):
-                acc += s.mech_X[r, j] * s.mech_X[c, j]
-            s.mech_A[r, c] = acc
-            s.mech_A[c, r] = acc
     return True
 
 
@@ -370,11 +409,19 @@ def solve_holds(m_rec, e_rec, rows, n, held, ref, out):
         rhs[q] = acc
         top = max(top, s.mech_A[r, r])
     lhs = s.mech_S
+    key = s.mech_hkey
+    same = key[0] == h
     for q in range(h):
-        for p in range(h):
-            lhs[q, p] = s.mech_A[idx[q], idx[p]]
-    if not cholesky(lhs, h, HOLD_REGULARISATION * top + 1e-300):
-        return False
+        same = same and key[1 + q] == idx[q]
+    if not same:  # factor the held rows' block (kept while configuration and rows stay)
+        for q in range(h):
+            for p in range(h):
+                lhs[q, p] = s.mech_A[idx[q], idx[p]]
+        if not cholesky(lhs, h, HOLD_REGULARISATION * top + 1e-300):
+            key[0] = -1
+            return False
+        key[0] = h
+        key[1 : 1 + h] = idx[:h]
     cho_solve(lhs, h, rhs)
     q = 0
     for a in range(n):

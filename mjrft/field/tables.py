@@ -164,6 +164,10 @@ class FieldData(NamedTuple):
     mech_in_held: np.ndarray  # (ntbody,) mech_held as that pass read it
     mech_R: np.ndarray  # (ntbody, 6) the medium's resistance last evaluated for a hold
     mech_key: np.ndarray  # (ntbody, 19) where: CoM, inertial frame, direction; 1 if valid
+    mech_M: np.ndarray  # (nv, nv) M of the configuration the factors below belong to
+    mech_cfg: np.ndarray  # (1 + ntbody + 6 nv + 6 ntbody,) that configuration: n, rows, cdof,
+    #   CoMs and root subtree CoMs; n = -1: none
+    mech_hkey: np.ndarray  # (1 + 6 ntbody,) held rows mech_S is the factor of; [0] = -1: none
     mech_L: np.ndarray  # (nv, nv) work: M, then its Cholesky factor
     mech_J: np.ndarray  # (6 ntbody, nv) work: Jacobians of the bodies in play
     mech_X: np.ndarray  # (6 ntbody, nv) work: rows of L^-1 J^T (M = L L^T)
@@ -316,7 +320,9 @@ def unpack_entry(m, address):
         _f(t.mech_prev, (nk, 6)), _i(t.mech_held, nk), _f(t.mech_in, (2, nv)),
         _f(t.mech_in_prev, (nk, 6)), _f(t.mech_in_force, m.nu), _i(t.mech_in_held, nk),
         _f(t.mech_R, (nk, 6)),
-        _f(t.mech_key, (nk, 19)), _f(t.mech_L, (nv, nv)),
+        _f(t.mech_key, (nk, 19)), _f(t.mech_M, (nv, nv)),
+        _f(t.mech_cfg, 1 + nk + 6 * nv + 6 * nk), _i(t.mech_hkey, 1 + 6 * nk),
+        _f(t.mech_L, (nv, nv)),
         _f(t.mech_J, (6 * nk, nv)), _f(t.mech_X, (6 * nk, nv)), _f(t.mech_A, (6 * nk, 6 * nk)),
         _f(t.mech_S, (6 * nk, 6 * nk)), _f(t.mech_vec, (3, max(nv, 6 * nk))),
     )  # fmt: skip
