@@ -22,19 +22,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 
-from mjrft.app import report, simulate  # noqa: E402
+from mjrft.app import metadata, report, simulate  # noqa: E402
 from mjrft.field.granular_field import GranularField  # noqa: E402
-
-
-def cpu_name() -> str:
-    """The CPU's model name (from /proc/cpuinfo where there is one)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 @dataclass
@@ -83,7 +72,7 @@ def main() -> None:
     names = sorted(p.stem for p in (ROOT / "models").glob("*.xml"))
     ap.add_argument("--models", nargs="+", default=names)
     args = ap.parse_args()
-    print(f"CPU: {cpu_name()}; Python {platform.python_version()}")
+    print(f"CPU: {metadata.machine()['cpu'] or 'unknown'}; Python {platform.python_version()}")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.models:
             for duration in args.durations:

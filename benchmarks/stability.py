@@ -41,7 +41,6 @@ subset in < 1 min). Writes ``benchmarks/stability_results/stability.csv`` and
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
 import dataclasses
 import math
@@ -60,6 +59,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from mjrft import GranularField
+from mjrft.app import metadata
 from mjrft.body import body_wrench, quat_to_mat, trajectory_wrenches
 from mjrft.core.elements import ElementSet
 
@@ -669,13 +669,7 @@ def plot_map(results: Sequence[Result], path: Path, subtitle: str) -> None:
 
 def cpu_name() -> str:
     """CPU model name (as lscpu reports it) and core count."""
-    name = platform.machine()
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                name = line.split(":", 1)[1].strip()
-                break
-    return f"{name}, {os.cpu_count()} cores"
+    return f"{metadata.machine()['cpu'] or platform.machine()}, {os.cpu_count()} cores"
 
 
 def build_cases(args: argparse.Namespace) -> list[Case]:

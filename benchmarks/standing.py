@@ -29,6 +29,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from mjrft.app import metadata  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
@@ -39,21 +40,23 @@ INTEGRATORS = {
 }
 
 
-def standing_hexapod(timestep: float, integrator: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """The hexapod at its keyframe pose with its gait stopped (ctrl = qvel = 0)."""
+def hexapod(gait_hz: float, timestep: float = 1e-3, integrator: str = "euler"):
+    """(model, data): the hexapod at its keyframe pose, every hip turning at gait_hz [Hz]
+    (0: the gait stopped, each intvelocity servo holding its keyframe angle)."""
     model = mujoco.MjModel.from_xml_path(str(ROOT / "models" / "hexapod_sand.xml"))
     model.opt.timestep = timestep
     model.opt.integrator = INTEGRATORS[integrator]
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
-    data.ctrl[:] = 0.0
+    data.ctrl[:] = 2 * np.pi * gait_hz  # every hip's rate; the keyframe sets the phases
     data.qvel[:] = 0.0
+    data.qvel[6:] = 2 * np.pi * gait_hz
     return model, data
 
 
 def stand(timestep: float, integrator: str, duration: float, low_speed: str) -> dict:
     """One standing run; the figures over its last half (see the module docstring)."""
-    model, data = standing_hexapod(timestep, integrator)
+    model, data = hexapod(0.0, timestep, integrator)
     fld = GranularField(model, low_speed=low_speed)
     torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso")
     weight = float(model.body_subtreemass[torso]) * -model.opt.gravity[2]
@@ -85,11 +88,7 @@ def stand(timestep: float, integrator: str, duration: float, low_speed: str) -> 
 
 def walk(frequency: float, low_speed: str) -> dict:
     """Forward speed [m/s] and wall time per step of the gait at `frequency` [Hz]."""
-    model = mujoco.MjModel.from_xml_path(str(ROOT / "models" / "hexapod_sand.xml"))
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    data.ctrl[:] = 2 * np.pi * frequency  # every hip's rate; the keyframe sets the phases
-    data.qvel[6:] = 2 * np.pi * frequency
+    model, data = hexapod(frequency)
     fld = GranularField(model, low_speed=low_speed)
     dt = model.opt.timestep
     with fld.installed():
@@ -110,7 +109,8 @@ def main() -> None:
     ap.add_argument("--low-speed", nargs="+", default=["stick", "free"])
     ap.add_argument("--walk", type=float, nargs="*", default=[], help="gait frequencies [Hz]")
     args = ap.parse_args()
-    print(f"{platform.processor() or platform.machine()}; Python {platform.python_version()}")
+    cpu = metadata.machine()["cpu"] or platform.machine()
+    print(f"CPU: {cpu}; Python {platform.python_version()}")
     rows = []
     for mode in args.low_speed:
         for dt in args.timesteps:
