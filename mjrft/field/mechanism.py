@@ -162,22 +162,15 @@ def body_jacobian(m, d, k, row, jac):
         jac[row + 5, j] = w2
 
 
-@numba.njit(inline="always", **_JIT)
-def follows(m, d, s):
-    """True if the last installed pass was at this time or one timestep before it."""
-    t, dt, t0 = d.time[0], m.opt_timestep[0], s.mech_time[0]
-    return s.mech_time[1] == 1.0 and (t == t0 or abs(t - (t0 + dt)) <= 1e-9 * dt + 1e-12 * abs(t))
-
-
 @numba.njit(**_JIT)
-def predictor_valid(m, d, s):
+def predictor_valid(m, d, s, same_time):
     """True if the qacc read by the first pass at this time described this state's loads (the
-    pass before it was one timestep before); a repeated pass at the same time gets the first
-    one's answer."""
-    t = d.time[0]
-    if s.mech_time[1] == 1.0 and t == s.mech_time[0]:
+    pass before it was one timestep before); a repeated pass at the same time (same_time) gets
+    the first one's answer. Records this pass's time."""
+    if same_time:
         return s.mech_time[2] == 1.0
-    ok = follows(m, d, s)
+    t, dt, t0 = d.time[0], m.opt_timestep[0], s.mech_time[0]
+    ok = s.mech_time[1] == 1.0 and abs(t - (t0 + dt)) <= 1e-9 * dt + 1e-12 * abs(t)
     s.mech_time[0] = t
     s.mech_time[1] = 1.0
     s.mech_time[2] = 1.0 if ok else 0.0
@@ -528,7 +521,7 @@ def treat_mechanisms(m_rec, e_rec):
     m, d, s = unpack(m_rec, e_rec)
     nv, nk = m.nv, m.tbody_bodyid.shape[0]
     same_time = s.mech_time[1] == 1.0 and d.time[0] == s.mech_time[0]
-    valid = predictor_valid(m, d, s)
+    valid = predictor_valid(m, d, s, same_time)
     if not same_time:  # a repeated pass (mj_forward, then mj_step) reads what the first read
         s.mech_in[0] = d.qacc
         s.mech_in[1] = s.mech_tau
