@@ -96,13 +96,12 @@ def energy(m: mujoco.MjModel, d: mujoco.MjData) -> float:
     return float(kinetic - mass * (m.opt.gravity @ d.xipos[1]))
 
 
-def throw(case: tuple) -> dict:
-    """One throw: the largest step gain over the tolerance, where, and the decision there."""
+def thrown(case: tuple) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The model of a throw (shape, mass [kg], dt [s], integrator, throw index) and its data at
+    the moment of the throw (seeded speed, direction and spin)."""
     shape, mass, dt, integrator, k = case
-    xml = scene(shape, mass, dt, integrator)
-    m, m_free = mujoco.MjModel.from_xml_string(xml), mujoco.MjModel.from_xml_string(xml)
-    fld = GranularField(m)
-    d, free = mujoco.MjData(m), mujoco.MjData(m_free)
+    m = mujoco.MjModel.from_xml_string(scene(shape, mass, dt, integrator))
+    d = mujoco.MjData(m)
     rng = np.random.default_rng([k, SHAPES.index(shape), int(1e3 * mass), int(1e4 * dt)])
     speed = 10.0 ** rng.uniform(math.log10(0.05), math.log10(2.0))
     direction = rng.normal(size=3)
@@ -110,6 +109,16 @@ def throw(case: tuple) -> dict:
     d.qvel[:3] = speed * direction / np.linalg.norm(direction)
     d.qvel[3:6] = rng.normal(size=3) * rng.uniform(0, 30) / math.sqrt(3)
     mujoco.mj_forward(m, d)
+    return m, d
+
+
+def throw(case: tuple) -> dict:
+    """One throw: the largest step gain over the tolerance, where, and the decision there."""
+    shape, mass, dt, integrator, k = case
+    m, d = thrown(case)
+    m_free = mujoco.MjModel.from_xml_string(scene(shape, mass, dt, integrator))
+    fld = GranularField(m)
+    free = mujoco.MjData(m_free)
     worst = {"ratio": 0.0, "step": -1, "decision": -1, "gain_J": 0.0, "energy_J": 0.0}
     e0 = energy(m, d)
     with fld.installed():

@@ -580,6 +580,42 @@ def rk4_stage_held(t: float, h: float, record: list[float]) -> bool:
     return False
 
 
+def rk4_step_gain(wrenches: list[np.ndarray], twist, mass, inertia, other, h) -> float:
+    """Energy [J] an RK4 step of length h [s] adds with the medium's wrench of each of its four
+    stages, beyond the step without it, for a free body of twist (6,), mass [kg], world inertia
+    (3, 3) and other wrenches (6,) at stage 1, all held constant over the step.
+
+    Written out from RK4's stages: the velocities v0, v0 + h/2 a1, v0 + h/2 a2, v0 + h a3 and
+    accelerations a_j = (other + W_j) / M, combined with the weights (1, 2, 2, 1) / 6 into the
+    end twist and the displacement; the energy counts the kinetic energy and the potential
+    -other_lin . x of the constant force (the rotation has none)."""
+    weights = np.array([1.0, 2.0, 2.0, 1.0]) / 6.0
+    inv = np.linalg.inv(inertia)
+
+    def step(ws):
+        acc = [np.concatenate([(other[:3] + w[:3]) / mass, inv @ (other[3:] + w[3:])]) for w in ws]
+        stage_twists = [twist, twist + h / 2 * acc[0], twist + h / 2 * acc[1], twist + h * acc[2]]
+        end = twist + h * sum(c * a for c, a in zip(weights, acc, strict=True))
+        moved = h * sum(c * v for c, v in zip(weights, stage_twists, strict=True))
+        kinetic = 0.5 * (mass * end[:3] @ end[:3] + end[3:] @ inertia @ end[3:])
+        return kinetic - other[:3] @ moved[:3]
+
+    return step(wrenches) - step([np.zeros(6)] * 4)
+
+
+def rk4_guard(guard: dict, w: np.ndarray, n: int, h: float) -> bool:
+    """Whether stage n (2-4) of an RK4 step may apply w (6,) to a free body evaluated per stage:
+    the step completed with w must not gain energy (:func:`rk4_step_gain`, within rounding). The
+    guard record holds stage 1's twist, mass, inertia, other wrenches and the wrenches applied."""
+    ws = guard["applied"] + [w] * (5 - n)
+    gain = rk4_step_gain(ws, guard["twist"], guard["mass"], guard["inertia"], guard["other"], h)
+    size = sum(np.abs(x).sum() for x in ws)
+    speeds = (
+        np.abs(guard["twist"]).sum() + h * (np.abs(guard["other"]).sum() + size) / guard["mass"]
+    )
+    return gain <= ROUNDING * h * size * speeds
+
+
 class ReferenceField:
     """The installed pass written plainly: install ``apply`` as MuJoCo's passive callback.
 
@@ -593,6 +629,8 @@ class ReferenceField:
         self.state: dict[int, dict] = {}
         self.decisions: list[int] = []
         self.wrench = np.zeros((field.model.nbody, 6))
+        #: Later RK4 stages in which the energy guard made a body hold stage 1's wrench.
+        self.stage_holds = 0
 
     def apply(self, m: mujoco.MjModel, d: mujoco.MjData) -> None:
         rows = self.field.body_ids
@@ -617,6 +655,7 @@ class ReferenceField:
                     keep[k] = True
                 elif (idx := candidates(self.field, d, be)) is not None:
                     w[be.body] = twist_wrench_at(self.field, d, be, idx, mode[1]) + mode[2]
+            self._guard_stages(st, w, int(st["record"][1]), float(m.opt.timestep))
         else:
             w, self.decisions, st["modes"] = treated_wrench(self.field, d, user)
             if self.field.low_speed.mechanisms:
@@ -624,8 +663,39 @@ class ReferenceField:
                 for k, dec in enumerate(self.decisions):
                     if dec != PURE and self.field.mechanism_eligible[k]:
                         st["modes"][k] = "hold"
+            st["guards"] = self._guards(m, d, w, user, st["modes"])
         total = st["user"] + w[rows]
         total[keep] = current[keep]
         d.xfrc_applied[rows] = total
         st["written"] = total
         self.wrench[rows[~keep]] = w[rows[~keep]]
+
+    def _guards(self, m, d, w, user, modes) -> dict[int, dict]:
+        """Stage 1 of an RK4 step: the energy guard's record of each free body not held."""
+        if m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4 or not self.field.low_speed.on:
+            return {}
+        guards = {}
+        for k, be in enumerate(self.field.bodies):
+            b = be.body
+            inertia = m.body_inertia[b]
+            if modes.get(k) == "hold" or not self.field.stick_eligible[k]:
+                continue
+            if not (m.body_mass[b] > 0 and np.all(inertia > 0)):
+                continue
+            twist, mass, iw, other = free_body_terms(self.field, d, be)
+            guards[k] = {"twist": twist, "mass": mass, "inertia": iw, "other": other + user[b],
+                         "applied": [w[b].copy()]}  # fmt: skip
+        return guards
+
+    def _guard_stages(self, st: dict, w: np.ndarray, n: int, h: float) -> None:
+        """Stages 2-4: a guarded body whose stage wrench would make the step gain energy holds
+        stage 1's wrench from this stage on (mjrft.field.rk4.guard_stage)."""
+        for k, guard in st["guards"].items():
+            if st["modes"].get(k) == "hold":
+                continue
+            b = self.field.bodies[k].body
+            if not rk4_guard(guard, w[b], n, h):
+                w[b] = guard["applied"][0]
+                st["modes"][k] = "hold"
+                self.stage_holds += 1
+            guard["applied"].append(w[b].copy())

@@ -387,6 +387,38 @@ def gravity(m, b):
     return g
 
 
+@numba.njit(inline="always", **_JIT)
+def has_inertia(m, b):
+    """True if body b has a positive mass and positive principal moments (it can be treated)."""
+    inertia = m.body_inertia[b]
+    return m.body_mass[b] > 0.0 and inertia[0] > 0.0 and inertia[1] > 0.0 and inertia[2] > 0.0
+
+
+@numba.njit(**_JIT)
+def free_body_terms(m, d, k, user):
+    """Tagged free body k's twist and the other wrenches on it over a step: gravity, the user's
+    row user (6,), the gyroscopic torque -omega x I omega. Returns (twist (6,), other (6,),
+    world inertia (3, 3), its inverse, gravity (3,) [m/s^2]); world frame, torques about the CoM.
+    """
+    b = m.tbody_bodyid[k]
+    mass = m.body_mass[b]
+    gvec = gravity(m, b)
+    iw, ii = world_inertia(d.ximat[b], m.body_inertia[b])
+    om = d.cvel[b, :3]
+    v = com_velocity(m, d, k)
+    iom = mv(iw, om)
+    twist = np.empty(6)
+    other = np.empty(6)
+    for c in range(3):
+        twist[c] = v[c]
+        twist[3 + c] = om[c]
+        other[c] = mass * gvec[c] + user[c]
+    other[3] = user[3] - (om[1] * iom[2] - om[2] * iom[1])
+    other[4] = user[4] - (om[2] * iom[0] - om[0] * iom[2])
+    other[5] = user[5] - (om[0] * iom[1] - om[1] * iom[0])
+    return twist, other, iw, ii, gvec
+
+
 @numba.njit(**_JIT)
 def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     """The low-speed treatment of tagged body k (a free rigid body); returns its decision.
@@ -400,23 +432,14 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     m, d, _ = unpack(m_rec, e_rec)
     b = m.tbody_bodyid[k]
     mass = m.body_mass[b]
-    inertia = m.body_inertia[b]
-    if mass <= 0.0 or inertia[0] <= 0.0 or inertia[1] <= 0.0 or inertia[2] <= 0.0:
+    if not has_inertia(m, b):
         return PURE
-    gvec = gravity(m, b)
     reach = m.reach
-    iw, ii = world_inertia(d.ximat[b], inertia)
-    om = d.cvel[b, :3]
-    v = com_velocity(m, d, k)
-    for c in range(3):
-        tw[c] = v[c]
-        tw[3 + c] = om[c]
+    twist, other, iw, ii, gvec = free_body_terms(m, d, k, user)
+    v, om = twist[:3], twist[3:]
+    tw[:] = twist
     iom = mv(iw, om)
-    # Other wrenches over the step: gravity, the user's row, the gyroscopic torque -w x Iw.
-    tau = np.empty(3)
-    tau[0] = user[3] - (om[1] * iom[2] - om[2] * iom[1])
-    tau[1] = user[4] - (om[2] * iom[0] - om[0] * iom[2])
-    tau[2] = user[5] - (om[0] * iom[1] - om[1] * iom[0])
+    tau = other[3:]
     v_free = np.empty(3)
     for c in range(3):
         v_free[c] = v[c] + dt * (gvec[c] + user[c] / mass)
@@ -430,13 +453,6 @@ def treat_body(m_rec, e_rec, k, user, dt, semi, w, ab, tw):
     dxi += dot(om_free - om + dom_pure, iom)
     ab[0] = sq
     ab[1] = dxi
-    twist = np.empty(6)
-    other = np.empty(6)
-    for c in range(3):
-        twist[c] = v[c]
-        twist[3 + c] = om[c]
-        other[c] = mass * gvec[c] + user[c]
-        other[3 + c] = tau[c]
     # The body's terms: twist and other wrenches (6,), mass [kg], world inertia and inverse.
     body = (twist, other, mass, iw, ii)
     if sq + reach * dxi > 0.0:

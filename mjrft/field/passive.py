@@ -78,6 +78,8 @@ def forward(m_rec, e_rec, mode):
         ne, na = frozen_wrenches(m_rec, e_rec)
         evaluated += ne
         acting += na
+        if m.treat:
+            rk4.guard_stage(m_rec, e_rec)
     if mode != QUERY:
         if evaluated or not held:
             s.stats[0] += 1
@@ -94,6 +96,8 @@ def forward(m_rec, e_rec, mode):
             mechanism.treat_mechanisms(m_rec, e_rec)
         if mode == INSTALLED:
             rk4.write_modes(s.rk4, s.decision, s.slow, s.frozen, lowspeed.IMPLICIT)
+            if m.treat and m.opt_integrator[0] == m.int_rk4:
+                rk4.begin_step(m_rec, e_rec)
     if mode == INSTALLED:
         ownership.write_rows(m_rec, e_rec)
     if mode == INSTALLED or mode == EXPLICIT:

@@ -34,8 +34,9 @@ N_STATS = 6
 STATS = ("calls", "evaluated", "acting", "stuck", "slipping", "implicit")
 #: The RK4 stage record (mjrft.field.rk4): time of the last evaluated pass and the passes since,
 #: then per tagged body its mode for stages 2-4, the twist of stage 1 (v at the CoM, omega;
-#: world) and stage 1's implicit correction (world force, torque about the CoM).
-RK4_HEAD, RK4_BODY = 2, 13
+#: world), stage 1's implicit correction (world force, torque about the CoM) and the terms of
+#: the later stages' energy guard (rk4.step_balance).
+RK4_HEAD, RK4_BODY = 2, 49
 
 
 class FieldModel(NamedTuple):
