@@ -394,7 +394,7 @@ def has_inertia(m, b):
     return m.body_mass[b] > 0.0 and inertia[0] > 0.0 and inertia[1] > 0.0 and inertia[2] > 0.0
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def free_body_terms(m, d, k, user):
     """Tagged free body k's twist and the other wrenches on it over a step: gravity, the user's
     row user (6,), the gyroscopic torque -omega x I omega. Returns (twist (6,), other (6,),

@@ -81,9 +81,12 @@ RESISTANCE_REUSE_M, RESISTANCE_REUSE_RAD = 1e-9, 1e-2
 #: changes the factors by ~1e-11 of themselves.
 CONFIGURATION_REUSE = 1e-12
 _JIT = {"cache": True, "error_model": "numpy"}
+# The small helpers that take the unpacked tables (m, d, s) are inlined: a call passes every
+# array of those NamedTuples by value, ~250 ns a call (the six servos' actuator_force alone
+# took 1.5 us a pass).
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def full_inertia(m, d, out):
     """Dense joint-space inertia (nv, nv) from MuJoCo's ``M`` (the lower triangle in CSR:
     ``M_rownnz``, ``M_rowadr``, ``M_colind``; what ``mj_fullM`` expands)."""
@@ -141,7 +144,7 @@ def back_solve(lower, n, x):
         x[i] = s / lower[i, i]
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def body_jacobian(m, d, k, row, jac):
     """jac[row:row + 6] = tagged body k's Jacobian at its CoM: rows CoM velocity, angular
     velocity (world); ``cdof`` is a motion at the subtree CoM of the body's root."""
@@ -162,7 +165,7 @@ def body_jacobian(m, d, k, row, jac):
         jac[row + 5, j] = w2
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def predictor_valid(m, d, s, same_time):
     """True if the qacc read by the first pass at this time described this state's loads (the
     pass before it was one timestep before); a repeated pass at the same time (same_time) gets
@@ -177,7 +180,7 @@ def predictor_valid(m, d, s, same_time):
     return ok
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def submerged(m, d, s, k):
     """True if an element of tagged body k's geoms in play is below the free surface (the pure
     wrench cannot tell: at rest it is zero)."""
@@ -208,7 +211,7 @@ def gather(m_rec, e_rec, rows):
     return n
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def actuator_force(m, d, a):
     """Force of actuator a at this state by MuJoCo's rule for fixed/affine gains and affine
     biases: gain (x, L, V) x + bias (L, V), x its activation or clamped control, clamped to its
@@ -241,7 +244,7 @@ def actuator_forces(m_rec, e_rec, out):
         out[a] = actuator_force(m, d, a) if m.actuator_affine[a] else np.nan
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def actuator_update(m, d, s, tau):
     """tau (nv,) += the change of the affine actuators' generalized force since the loads were
     read: this state's force (``actuator_force``) minus the previous pass's, through this
@@ -257,7 +260,7 @@ def actuator_update(m, d, s, tau):
             tau[d.moment_colind[q]] += d.actuator_moment[q] * df
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def same_configuration(m, d, s, rows, n):
     """True if the bodies in the medium and the configuration (cdof, their CoMs and their
     roots' subtree CoMs, within CONFIGURATION_REUSE) are those of the stored factors; else
@@ -284,16 +287,15 @@ def same_configuration(m, d, s, rows, n):
         same = same and abs(key[q] - cfg[q]) <= CONFIGURATION_REUSE
     if not same:
         cfg[:] = key
-        s.mech_hkey[0] = -1  # the held rows' factor belongs to the old configuration
+        s.mech_hkey[0] = -2  # the hold system (and its held rows' factor) is the old one's
     return same
 
 
 @numba.njit(**_JIT)
 def setup(m_rec, e_rec, rows, n):
-    """Factor M = L L^T (s.mech_L), Jacobians (s.mech_J), Y = L^-1 J^T as rows (s.mech_X),
-    A = J M^-1 J^T = Y^T Y (s.mech_A), unless the configuration is the last pass's
-    (``same_configuration``); and the free velocity u (s.mech_vec[0]). Returns False if M is not
-    positive definite."""
+    """Factor M = L L^T (s.mech_L) and the Jacobians (s.mech_J), unless the configuration is the
+    last pass's (``same_configuration``); and the free velocity u (s.mech_vec[0]). Returns False
+    if M is not positive definite."""
     m, d, s = unpack(m_rec, e_rec)
     nv, dt = m.nv, m.opt_timestep[0]
     lo = s.mech_L
@@ -305,17 +307,6 @@ def setup(m_rec, e_rec, rows, n):
             return False
         for a in range(n):
             body_jacobian(m, d, rows[a], 6 * a, s.mech_J)
-        for r in range(6 * n):
-            for j in range(nv):
-                s.mech_X[r, j] = s.mech_J[r, j]
-            forward_solve(lo, nv, s.mech_X[r])
-        for r in range(6 * n):
-            for c in range(r, 6 * n):
-                acc = 0.0
-                for j in range(nv):
-                    acc += s.mech_X[r, j] * s.mech_X[c, j]
-                s.mech_A[r, c] = acc
-                s.mech_A[c, r] = acc
     u = s.mech_vec[0]
     for i in range(nv):  # tau_other = M qacc_prev - tau_field_prev
         acc = -s.mech_in[1, i]
@@ -327,6 +318,29 @@ def setup(m_rec, e_rec, rows, n):
     for i in range(nv):
         u[i] = d.qvel[i] + dt * u[i]
     return True
+
+
+@numba.njit(**_JIT)
+def hold_system(m_rec, e_rec, n):
+    """Y = L^-1 J^T as rows (s.mech_X) and A = J M^-1 J^T = Y^T Y (s.mech_A) of the n bodies in
+    the medium, unless built for this configuration: only a pass that holds a body needs them
+    (a walking robot's feet mostly move, and building A is most of the treatment's cost)."""
+    m, _, s = unpack(m_rec, e_rec)
+    if s.mech_hkey[0] != -2:
+        return
+    nv = m.nv
+    for r in range(6 * n):
+        for j in range(nv):
+            s.mech_X[r, j] = s.mech_J[r, j]
+        forward_solve(s.mech_L, nv, s.mech_X[r])
+    for r in range(6 * n):
+        for c in range(r, 6 * n):
+            acc = 0.0
+            for j in range(nv):
+                acc += s.mech_X[r, j] * s.mech_X[c, j]
+            s.mech_A[r, c] = acc
+            s.mech_A[c, r] = acc
+    s.mech_hkey[0] = -1
 
 
 @numba.njit(**_JIT)
@@ -351,8 +365,8 @@ def classify(m_rec, e_rec, rows, n, held):
         b = m.tbody_bodyid[rows[a]]
         for r in range(6):
             for j in range(nv):
-                g[j] += s.mech_X[6 * a + r, j] * s.wrench[b, r]
-    back_solve(s.mech_L, nv, g)
+                g[j] += s.mech_J[6 * a + r, j] * s.wrench[b, r]
+    cho_solve(s.mech_L, nv, g)
     xi, dxi, pred = np.empty(6), np.empty(6), np.empty(6)
     for a in range(n):
         k = rows[a]
@@ -501,7 +515,7 @@ def resistance(m_rec, e_rec, k, twist, out):
     s.mech_key[k] = key
 
 
-@numba.njit(**_JIT)
+@numba.njit(inline="always", **_JIT)
 def body_size(m, k):
     """Largest bounding-sphere radius of tagged body k's geoms [m]."""
     size = 0.0
@@ -537,6 +551,8 @@ def treat_mechanisms(m_rec, e_rec):
     held = np.zeros(n, dtype=np.int64)
     if valid:
         classify(m_rec, e_rec, rows, n, held)
+    if held.any():
+        hold_system(m_rec, e_rec, n)
     out = np.empty((n, 6))
     ref = np.empty((n, 6))
     for a in range(n):

@@ -105,7 +105,7 @@ class DataState:
             report_decision=report[1],
             mech_M=np.zeros((nv, nv)),
             mech_cfg=np.full(1 + nk + 6 * nv + 6 * nk, -1.0),
-            mech_hkey=np.full(1 + 6 * nk, -1, dtype=np.int64),
+            mech_hkey=np.full(1 + 6 * nk, -2, dtype=np.int64),
             mech_L=np.zeros((nv, nv)),
             mech_J=np.zeros((6 * nk, nv)),
             mech_X=np.zeros((6 * nk, nv)),

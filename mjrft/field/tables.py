@@ -168,7 +168,7 @@ class FieldData(NamedTuple):
     mech_M: np.ndarray  # (nv, nv) M of the configuration the factors below belong to
     mech_cfg: np.ndarray  # (1 + ntbody + 6 nv + 6 ntbody,) that configuration: n, rows, cdof,
     #   CoMs and root subtree CoMs; n = -1: none
-    mech_hkey: np.ndarray  # (1 + 6 ntbody,) held rows mech_S is the factor of; [0] = -1: none
+    mech_hkey: np.ndarray  # (1 + 6 ntbody,) held rows mech_S factors; [0]: -1 none, -2 no mech_A
     mech_L: np.ndarray  # (nv, nv) work: M, then its Cholesky factor
     mech_J: np.ndarray  # (6 ntbody, nv) work: Jacobians of the bodies in play
     mech_X: np.ndarray  # (6 ntbody, nv) work: rows of L^-1 J^T (M = L L^T)
