@@ -38,7 +38,6 @@ from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
-import trimesh
 
 from mjrft.core.elements import ElementSet
 
@@ -803,6 +802,10 @@ def from_mesh_file(path: str | Path, *, scale: float = 1.0) -> ElementSet:
         raise ValueError(
             f"mesh file {str(p)!r} does not exist or is not a file (supported: {supported})"
         )
+    # Imported here: trimesh (with the scipy.spatial it loads) is half a second of every import
+    # of mjrft, and only files on disk need it (MJCF meshes come from the compiled MjModel).
+    import trimesh
+
     try:
         mesh = trimesh.load(str(p), force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
