@@ -125,7 +125,8 @@ def main() -> None:
     start, stop = int(fm.tgeom_elemadr[0]), int(fm.tgeom_elemadr[0] + fm.tgeom_elemnum[0])
     wargs = (
         fm.elem_pos, fm.elem_normal, fm.elem_area, start, stop, fm.coef, fm.alpha_y, fm.zeta,
-        fm.surface_z, False, np.zeros((2, 3)), d.xmat[b].reshape(3, 3).copy(), d.xpos[b].copy(),
+        fm.surface_prm, fm.surface_grid, False, np.zeros((2, 3)), d.xmat[b].reshape(3, 3).copy(),
+        d.xpos[b].copy(),
         d.cvel[b, :3].copy(), d.cvel[b, 3:].copy(), d.subtree_com[root].copy(),
         d.xipos[b].copy(),
     )  # fmt: skip

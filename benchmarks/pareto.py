@@ -56,6 +56,7 @@ from mjrft import geometry, simulate
 from mjrft.app import demos
 from mjrft.body import trajectory_wrenches
 from mjrft.core import kernel as _kernel
+from mjrft.core import surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.units import MM
@@ -169,6 +170,7 @@ def root_shape(n: int) -> ElementSet:
 
 
 _NO_REGION = np.zeros((2, 3))
+_FLAT = surface.flat(0.0)
 
 
 def evaluate(shape: ElementSet, motion: Motion) -> tuple[np.ndarray, float]:
@@ -184,7 +186,8 @@ def evaluate(shape: ElementSet, motion: Motion) -> tuple[np.ndarray, float]:
     t0 = time.perf_counter()
     for i in range(len(pos)):
         _kernel.body_wrench(
-            cent, norm, area, 0, len(area), co, ay, zeta, 0.0, False, _NO_REGION,
+            cent, norm, area, 0, len(area), co, ay, zeta, _FLAT.prm, _FLAT.grid, False,
+            _NO_REGION,
             rot[i], pos[i], ang[i], vel[i], pos[i], pos[i], out[i], elem,
         )  # fmt: skip
     return out, (time.perf_counter() - t0) / len(pos)

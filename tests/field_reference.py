@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 
 import mjrft
+from mjrft.core import surface
 from mjrft.field.lowspeed import (
     DEFAULT_REACH,
     IMPLICIT,
@@ -312,13 +313,42 @@ def stick_fraction(
 
 
 # ---------------------------------------------------------------------- the pure model
+def surface_height(field: mjrft.GranularField, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Height [m] of the field's free surface at world (x, y) [m], written plainly: flat, a
+    plane, or a grid linear over the two triangles of each cell split along (c, r)-(c+1, r+1),
+    the nearest edge's height beyond it."""
+    prm, grid = field.surface.prm, field.surface.grid
+    x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+    kind = int(prm[surface.KIND])
+    if kind == surface.FLAT:
+        return np.full(x.shape, prm[surface.Z0])
+    if kind == surface.PLANE:
+        return prm[surface.Z0] + prm[surface.GX] * x + prm[surface.GY] * y
+    nrow, ncol = grid.shape
+    u = np.clip((x - prm[surface.X0]) / prm[surface.DX], 0, ncol - 1)
+    v = np.clip((y - prm[surface.Y0]) / prm[surface.DY], 0, nrow - 1)
+    c, r = np.minimum(u.astype(int), ncol - 2), np.minimum(v.astype(int), nrow - 2)
+    fu, fv = u - c, v - r
+    lower = fu >= fv  # the triangle (c, r), (c+1, r), (c+1, r+1)
+    corner = np.where(lower, grid[r, c + 1], grid[r + 1, c])
+    a, b = np.where(lower, fu, fv), np.where(lower, fv, fu)
+    return grid[r, c] + a * (corner - grid[r, c]) + b * (grid[r + 1, c + 1] - corner)
+
+
 def geom_may_act(field: mjrft.GranularField, data: mujoco.MjData, g: int) -> bool:
     """False if geom g's bounding sphere is entirely above the surface or outside the region
     (a radius of 0, unknown to MuJoCo, never culls)."""
     c, r = data.geom_xpos[g], field.model.geom_rbound[g]
     if r <= 0.0:
         return True
-    if c[2] - r >= field.surface_z:
+    prm = field.surface.prm
+    top = {
+        surface.FLAT: prm[surface.Z0],
+        surface.PLANE: surface_height(field, c[0], c[1])
+        + r * np.hypot(*prm[surface.GX : surface.GY + 1]),
+        surface.GRID: field.surface.grid.max(),
+    }[int(prm[surface.KIND])]
+    if c[2] - r >= top:
         return False
     region = field.region
     return region is None or not (np.any(c + r < region[0]) or np.any(c - r > region[1]))
@@ -343,7 +373,10 @@ def body_wrench_at(field, data, be, idx, omega, v_ref, p_ref) -> np.ndarray:
     pos = be.centroids[idx] @ rot.T + data.xpos[b]
     normal = be.normals[idx] @ rot.T
     vel = v_ref + np.cross(omega, pos - p_ref)
-    f = mjrft.element_forces(pos, normal, be.areas[idx], vel, field.material, field.surface_z)
+    # Depth is vertical below the local surface: shift each element by its surface's height.
+    shifted = pos.copy()
+    shifted[:, 2] -= surface_height(field, pos[:, 0], pos[:, 1]) - field.surface_z
+    f = mjrft.element_forces(shifted, normal, be.areas[idx], vel, field.material, field.surface_z)
     if field.region is not None:
         f[~np.all((pos >= field.region[0]) & (pos <= field.region[1]), axis=1)] = 0.0
     return np.concatenate([f.sum(axis=0), np.cross(pos - data.xipos[b], f).sum(axis=0)])
@@ -492,8 +525,8 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
     rows = [
         k for k, be in enumerate(field.bodies)
         if field.mechanism_eligible[k] and (idx := candidates(field, data, be)) is not None
-        and np.any(be.centroids[idx] @ data.xmat[be.body].reshape(3, 3)[2] + data.xpos[be.body, 2]
-                   < field.surface_z)
+        and np.any((p := be.centroids[idx] @ data.xmat[be.body].reshape(3, 3).T
+                    + data.xpos[be.body])[:, 2] < surface_height(field, p[:, 0], p[:, 1]))
     ]  # fmt: skip
     st["mech_tau"], st["mech_held"], st["mech_prev"] = np.zeros(nv), {}, {}
     if not rows or nv == 0 or not dt > 0.0:

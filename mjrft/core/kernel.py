@@ -32,7 +32,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from mjrft.core import numba_cache
+from mjrft.core import numba_cache, surface
 from mjrft.core.law import (
     F1_GAIN,
     F1_NORM,
@@ -297,7 +297,7 @@ def input_flags(pos, normal, area, vel):
 @numba.njit(**_JIT)
 def body_wrench(
     # Model: the body's elements (body frame), then the medium
-    cent, norm, area, start, stop, co, ay, zeta, surface_z, use_region, region,
+    cent, norm, area, start, stop, co, ay, zeta, surface_prm, surface_grid, use_region, region,
     # Data in: the body's pose and motion (world frame)
     rot, pos, omega, v_ref, p_ref, com,
     # Data out
@@ -306,12 +306,12 @@ def body_wrench(
     """Add to wrench (6,) the RFT wrench on elements start..stop of a body; returns #acting.
 
     cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co (18,)
-    combined coefficients, ay the generic alpha_y, zeta [N/m^3], surface_z [m]; region (2, 3)
-    world box of the medium, used if use_region. rot (3, 3) body -> world; pos (3,) body origin
-    [m]; omega (3,) angular velocity [rad/s]; v_ref (3,) linear velocity [m/s] of the world
-    point p_ref (3,) moving with the body; com (3,): point about which torque is taken [m]; all
-    world frame. elem_force (n, 3): forces [N] are written for elements start..stop (zero where
-    nothing acts).
+    combined coefficients, ay the generic alpha_y, zeta [N/m^3]; surface_prm, surface_grid the
+    free surface (mjrft.core.surface; depth measured vertically); region (2, 3) world box of
+    the medium, used if use_region. rot (3, 3) body -> world; pos (3,) body origin [m]; omega
+    (3,) angular velocity [rad/s]; v_ref (3,) linear velocity [m/s] of the world point p_ref
+    (3,) moving with the body; com (3,): point about which torque is taken [m]; all world frame.
+    elem_force (n, 3): forces [N] are written for elements start..stop (zero where nothing acts).
     """
     buf, idx = _scratch()
     # Flat views and scalar invariants: constant-stride loads and no reloads in the loop below
@@ -327,6 +327,12 @@ def body_wrench(
     qx, qy, qz = p_ref[0], p_ref[1], p_ref[2]
     lo_x, lo_y, lo_z = region[0, 0], region[0, 1], region[0, 2]
     hi_x, hi_y, hi_z = region[1, 0], region[1, 1], region[1, 2]
+    kind = surface_prm[surface.KIND]
+    flat = kind == surface.FLAT
+    # No surface is higher than top: the flat surface's height, a grid's highest point.
+    top = surface_prm[surface.Z0] if flat else np.inf
+    if kind == surface.GRID:
+        top = surface_prm[surface.ZMAX]
     count = 0
     for c0 in range(start, stop, CHUNK):
         k = 0
@@ -338,11 +344,15 @@ def body_wrench(
             # are dry together), after three multiply-adds.
             cx, cy, cz = cf[3 * i], cf[3 * i + 1], cf[3 * i + 2]
             pz = r20 * cx + r21 * cy + r22 * cz + oz
-            depth = surface_z - pz
+            depth = top - pz
             if depth <= 0.0:
                 continue
             px = r00 * cx + r01 * cy + r02 * cz + ox
             py = r10 * cx + r11 * cy + r12 * cz + oy
+            if not flat:
+                depth = surface.height(surface_prm, surface_grid, px, py) - pz
+                if depth <= 0.0:
+                    continue
             if use_region and (
                 px < lo_x or py < lo_y or pz < lo_z or px > hi_x or py > hi_y or pz > hi_z
             ):
@@ -441,11 +451,14 @@ def trajectory(cent, norm, area, co, ay, zeta, surface_z, rot, pos, lin_vel, ang
     body origin [m], lin_vel (T, 3) its velocity [m/s], ang_vel (T, 3) [rad/s]; the elements
     cent, norm (n, 3), area (n,) in the body frame. One thread, no BLAS."""
     region = np.zeros((2, 3))
+    prm = np.zeros(surface.PRM_SIZE)
+    prm[surface.Z0] = surface_z
+    grid = np.zeros((1, 1))
     scratch = np.empty((cent.shape[0], 3))
     out[:] = 0.0
     for t in range(pos.shape[0]):
         body_wrench(
-            cent, norm, area, 0, cent.shape[0], co, ay, zeta, surface_z, False, region,
+            cent, norm, area, 0, cent.shape[0], co, ay, zeta, prm, grid, False, region,
             rot[t], pos[t], ang_vel[t], lin_vel[t], pos[t], point[t], out[t], scratch,
         )  # fmt: skip
 
@@ -457,7 +470,8 @@ def warm_up() -> None:
     out = np.zeros((1, 3))
     forces(one, one, np.ones(1), one, co, 0.1, 1.0, 0.0, out)
     body_wrench(
-        one, one, np.ones(1), 0, 1, co, 0.1, 1.0, 0.0, False, np.zeros((2, 3)),
+        one, one, np.ones(1), 0, 1, co, 0.1, 1.0, np.zeros(surface.PRM_SIZE), np.zeros((1, 1)),
+        False, np.zeros((2, 3)),
         np.eye(3), np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), np.zeros(3),
         np.zeros(6), out,
     )  # fmt: skip

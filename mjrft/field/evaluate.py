@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mjrft.core import kernel
+from mjrft.core import kernel, surface
 from mjrft.field import python_material
 from mjrft.field.tables import unpack
 
@@ -46,7 +46,8 @@ def culled(m, d, g):
     if r <= 0.0:
         return False
     geom = m.tgeom_geomid[g]
-    if d.geom_xpos[geom, 2] - r >= m.surface_z:
+    top = surface.highest_near(m.surface_prm, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r)
+    if d.geom_xpos[geom, 2] - r >= top:
         return True
     if m.use_region:
         for c in range(3):
@@ -67,7 +68,8 @@ def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
     if m.material_key == 0:
         return kernel.body_wrench(
             m.elem_pos, m.elem_normal, m.elem_area, start, stop,
-            m.coef, m.alpha_y, m.zeta, m.surface_z, m.use_region != 0, m.region,
+            m.coef, m.alpha_y, m.zeta, m.surface_prm, m.surface_grid, m.use_region != 0,
+            m.region,
             d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com,
             wrench, elem_force,
         )  # fmt: skip

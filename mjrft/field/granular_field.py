@@ -24,8 +24,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from mjrft.core import surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
+from mjrft.core.surface import Surface
 from mjrft.field import guard, lowspeed, ownership, passive, python_material
 from mjrft.field.model import (
     BodyElements,
@@ -34,7 +36,7 @@ from mjrft.field.model import (
     free_rigid,
     mechanism_body,
 )
-from mjrft.field.scene import Scene, scene_from_model
+from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.field.signals import HeldSignals
 from mjrft.field.state import DataState, States
 from mjrft.field.tables import STATS
@@ -129,6 +131,11 @@ class GranularField:
         self._states.on_forget = self._unregister
 
     def _register_python_material(self) -> int:
+        if self.scene.surface.kind != surface.FLAT:
+            raise SceneError(
+                "a material given by Python callables acts under the flat surface only "
+                "(mjrft:surface_z); this scene's surface is a tilted plane or a height field"
+            )
         fm = (
             np.concatenate([be.centroids for be in self.bodies]),
             np.concatenate([be.normals for be in self.bodies]),
@@ -146,8 +153,14 @@ class GranularField:
 
     @property
     def surface_z(self) -> float:
-        """Free-surface height [m], world frame."""
+        """Free-surface height [m], world frame: the flat surface's, or the reference height of
+        a tilted plane (at x = y = 0) or a height field (its lowest point); see ``surface``."""
         return self.scene.surface_z
+
+    @property
+    def surface(self) -> Surface:
+        """The free surface (mjrft.core.surface): ``surface.height(x, y)`` [m], world frame."""
+        return self.scene.surface
 
     @property
     def region(self) -> np.ndarray | None:

@@ -52,6 +52,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from mjrft.core import surface
 from mjrft.field.evaluate import in_play, twist_wrench
 from mjrft.field.lowspeed import (
     PURE,
@@ -185,6 +186,8 @@ def submerged(m, d, s, k):
     """True if an element of tagged body k's geoms in play is below the free surface (the pure
     wrench cannot tell: at rest it is zero)."""
     b = m.tbody_bodyid[k]
+    flat = m.surface_prm[surface.KIND] == surface.FLAT
+    top = m.surface_prm[surface.Z0]
     for g in range(m.tbody_geomadr[k], m.tbody_geomadr[k] + m.tbody_geomnum[k]):
         if s.cull[g]:
             continue
@@ -192,7 +195,15 @@ def submerged(m, d, s, k):
             z = d.xpos[b, 2]
             for c in range(3):
                 z += d.xmat[b, 2, c] * m.elem_pos[e, c]
-            if z < m.surface_z:
+            if flat:  # the height alone (three multiply-adds an element)
+                if z < top:
+                    return True
+                continue
+            x, y = d.xpos[b, 0], d.xpos[b, 1]
+            for c in range(3):
+                x += d.xmat[b, 0, c] * m.elem_pos[e, c]
+                y += d.xmat[b, 1, c] * m.elem_pos[e, c]
+            if z < surface.height(m.surface_prm, m.surface_grid, x, y):
                 return True
     return False
 

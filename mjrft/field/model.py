@@ -260,6 +260,10 @@ def build_tables(
         actuator_biasprm=model.actuator_biasprm,
         actuator_ctrlrange=model.actuator_ctrlrange,
         actuator_forcerange=model.actuator_forcerange,
+        surface_prm=f64(scene.surface.prm),
+        surface_grid=f64(scene.surface.grid),
     )
-    sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies)}
+    nrow, ncol = scene.surface.grid.shape
+    sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),
+             "surface_nrow": nrow, "surface_ncol": ncol}  # fmt: skip
     return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))

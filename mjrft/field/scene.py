@@ -8,6 +8,11 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:coefficients" data="A00 A10 B11 B01 B-11 C11 C01 C-11 D10"/>
                                                          optional generic-form set with mjrft:zeta
       <numeric name="mjrft:surface_z" data="0"/>         free-surface height [m] (default 0)
+      <numeric name="mjrft:surface_slope" data="10 90"/> or a tilted plane through (0, 0,
+                                                         surface_z): slope and downhill azimuth
+                                                         from +x [degrees]
+      <text name="mjrft:surface_hfield" data="dune"/>    or the surface of an <hfield> asset, placed
+                                                         by the geom that uses it
       <numeric name="mjrft:region" data="xmin ymin zmin xmax ymax zmax"/>
                                                          optional box bounding the medium [m]
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
@@ -35,16 +40,19 @@ import mujoco
 import numpy as np
 
 from mjrft.core import geometry
+from mjrft.core import surface as surface_mod
 from mjrft.core.material import PRESETS, FourierCoefficients, Material, warn_if_unusual_zeta
+from mjrft.core.surface import Surface
 from mjrft.field.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 
 PREFIX = "mjrft:"
 KEYS = {
-    "text": ("material", "low_speed"),
+    "text": ("material", "low_speed", "surface_hfield"),
     "numeric": (
         "zeta",
         "coefficients",
         "surface_z",
+        "surface_slope",
         "region",
         "triangles",
         "tolerance",
@@ -105,6 +113,8 @@ class Scene:
       region: (2, 3) [[xmin, ymin, zmin], [xmax, ymax, zmax]] world box of the medium, or None.
       intruders: tagged geoms in ascending geom id.
       low_speed: the low-speed treatment (mjrft.lowspeed).
+      surface: the free surface (mjrft.core.surface; default the flat one at surface_z, which
+        is otherwise its reference height).
     """
 
     material: Material
@@ -112,6 +122,11 @@ class Scene:
     region: np.ndarray | None
     intruders: tuple[Intruder, ...]
     low_speed: LowSpeed = dataclasses.field(default_factory=LowSpeed)
+    surface: Surface | None = None
+
+    def __post_init__(self) -> None:
+        if self.surface is None:
+            object.__setattr__(self, "surface", surface_mod.flat(self.surface_z))
 
 
 def _name(model: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:
@@ -282,6 +297,7 @@ def scene_from_model(
     surface = _numeric_field(model, custom, "surface_z", (1,), "one finite number [m]")
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
+    free_surface = _surface(model, custom, surface_z, region)
     default_tri, default_tol = _default_resolution(model, custom)
     if "intruders" not in custom:
         raise SceneError(
@@ -300,8 +316,90 @@ def scene_from_model(
             for i in intruders
         )
     return Scene(
-        material, surface_z, region, intruders, _low_speed(model, custom, low_speed, stick_reach)
+        material, free_surface.z0, region, intruders,
+        _low_speed(model, custom, low_speed, stick_reach), free_surface,
+    )  # fmt: skip
+
+
+#: Steepest tilted-plane surface accepted [degrees]: dry granular media do not stand steeper
+#: than their angle of repose, 20-40 degrees for sands and glass beads (docs/field.md).
+MAX_SLOPE_DEG = 60.0
+DEG = math.pi / 180.0  # rad per degree: the MJCF gives angles in degrees
+
+
+def _surface(model, custom, surface_z: float, region) -> Surface:
+    """The free surface: flat at surface_z, the tilted plane of mjrft:surface_slope, or the
+    height field of mjrft:surface_hfield."""
+    if "surface_slope" in custom and "surface_hfield" in custom:
+        raise SceneError(
+            f"<custom> gives both {PREFIX}surface_slope and {PREFIX}surface_hfield; use one"
+        )
+    if "surface_slope" in custom:
+        where = f"<numeric name='{PREFIX}surface_slope'>"
+        valid = "2 numbers: slope [deg] and downhill azimuth from +x [deg]"
+        slope, azimuth = _numeric_field(model, custom, "surface_slope", (2,), valid)
+        if not 0.0 <= slope <= MAX_SLOPE_DEG:
+            raise SceneError(
+                f"{where} slope = {slope} degrees; expected 0 to {MAX_SLOPE_DEG:g} (a granular "
+                "slope stands at most at its angle of repose, 20-40 degrees)"
+            )
+        return surface_mod.plane(surface_z, slope * DEG, azimuth * DEG)
+    if "surface_hfield" in custom:
+        if "surface_z" in custom:
+            raise SceneError(
+                f"<custom> gives both {PREFIX}surface_z and {PREFIX}surface_hfield; the height "
+                "field's geom places the surface"
+            )
+        return _hfield_surface(model, _text(model, custom["surface_hfield"][1]), region)
+    return surface_mod.flat(surface_z)
+
+
+def _hfield_surface(model, name: str, region) -> Surface:
+    """The surface of hfield `name` as MuJoCo's collision builds it, placed by its geom."""
+    where = f"<text name='{PREFIX}surface_hfield'> = {name!r}"
+    h = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, name)
+    if h < 0:
+        names = [_name(model, mujoco.mjtObj.mjOBJ_HFIELD, i) for i in range(model.nhfield)]
+        raise SceneError(f"{where}: no such hfield (hfields: {', '.join(names) or 'none'})")
+    users = np.flatnonzero(
+        (model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD) & (model.geom_dataid == h)
     )
+    if len(users) != 1:
+        raise SceneError(
+            f"{where}: {len(users)} geoms use it; exactly one <geom type='hfield' hfield="
+            f"'{name}'> on the worldbody must place it (contype='0' conaffinity='0' if the "
+            "intruders should meet only the medium)"
+        )
+    g = int(users[0])
+    geom = _name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+    if model.geom_bodyid[g] != 0:
+        raise SceneError(f"{where}: its geom {geom!r} must be on the worldbody (static)")
+    if not np.allclose(model.geom_quat[g], [1.0, 0.0, 0.0, 0.0], atol=1e-12):
+        raise SceneError(
+            f"{where}: its geom {geom!r} is rotated (quat {model.geom_quat[g].tolist()}); the "
+            "surface needs the hfield's z axis along world z and its x axis along world x"
+        )
+    rx, ry, top, _ = (float(v) for v in model.hfield_size[h])
+    nrow, ncol = int(model.hfield_nrow[h]), int(model.hfield_ncol[h])
+    if nrow < 2 or ncol < 2:
+        raise SceneError(f"{where}: it has {nrow} x {ncol} samples; a surface needs 2 x 2 or more")
+    adr = int(model.hfield_adr[h])
+    # float32 in MjModel; heights in float64 as MuJoCo's collision computes them.
+    data = np.asarray(model.hfield_data[adr : adr + nrow * ncol], dtype=np.float64)
+    data = data.reshape(nrow, ncol)
+    x, y, z = (float(v) for v in model.geom_pos[g])
+    # MuJoCo's collision: vertex (r, c) at (c dx - rx, r dy - ry, data[r, c] top), geom frame.
+    dx, dy = 2.0 * rx / (ncol - 1), 2.0 * ry / (nrow - 1)
+    out = surface_mod.grid(z + top * data, x - rx, y - ry, dx, dy)
+    if region is not None:
+        lo, hi = region[0, :2], region[1, :2]
+        if lo[0] < x - rx or lo[1] < y - ry or hi[0] > x + rx or hi[1] > y + ry:
+            raise SceneError(
+                f"{where}: the hfield covers x {x - rx:g}..{x + rx:g}, y {y - ry:g}..{y + ry:g} "
+                f"[m] but {PREFIX}region spans x {lo[0]:g}..{hi[0]:g}, y {lo[1]:g}..{hi[1]:g}; "
+                "enlarge the hfield or shrink the region"
+            )
+    return out
 
 
 def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:

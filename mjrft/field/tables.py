@@ -28,6 +28,8 @@ import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
+from mjrft.core.surface import PRM_SIZE
+
 #: Work counters per FieldData: passes evaluated, triangles evaluated, triangles acting, and of
 #: the low-speed treatment body-passes stuck, slipping, moved by the implicit step.
 N_STATS = 6
@@ -102,6 +104,8 @@ class FieldModel(NamedTuple):
     actuator_biasprm: np.ndarray  # (nu, 10) live
     actuator_ctrlrange: np.ndarray  # (nu, 2) live
     actuator_forcerange: np.ndarray  # (nu, 2) live
+    surface_prm: np.ndarray  # (surface.PRM_SIZE,) the free surface (mjrft.core.surface)
+    surface_grid: np.ndarray  # (surface_nrow, surface_ncol) its grid heights [m], world frame
 
 
 class MjDataArrays(NamedTuple):
@@ -181,7 +185,7 @@ def _sizes(names: tuple[str, ...]) -> list[tuple[str, type]]:
     return [(n, np.int64) for n in names]
 
 
-_MODEL_SIZES = ("nelem", "ntgeom", "ntbody")
+_MODEL_SIZES = ("nelem", "ntgeom", "ntbody", "surface_nrow", "surface_ncol")
 _FLOAT_SCALARS = {"surface_z", "zeta", "alpha_y", "reach", "jacobian_step", "rk4_hold_steps"}
 _INT_SCALARS = {
     "nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4", "nv",
@@ -291,7 +295,8 @@ def unpack_model(address):
         _i(t.actuator_actadr, t.nu), _i(t.actuator_ctrllimited, t.nu),
         _i(t.actuator_forcelimited, t.nu), _f(t.actuator_gainprm, (t.nu, 10)),
         _f(t.actuator_biasprm, (t.nu, 10)), _f(t.actuator_ctrlrange, (t.nu, 2)),
-        _f(t.actuator_forcerange, (t.nu, 2)),
+        _f(t.actuator_forcerange, (t.nu, 2)), _f(t.surface_prm, PRM_SIZE),
+        _f(t.surface_grid, (t.surface_nrow, t.surface_ncol)),
     )  # fmt: skip
 
 

@@ -1,0 +1,226 @@
+"""Free surfaces that vary with position: a tilted plane and a MuJoCo height field
+(mjrft.core.surface; depth measured vertically below the local surface)."""
+
+import field_reference as ref
+import mujoco
+import numpy as np
+import pytest
+
+from mjrft import Material
+from mjrft.field import GranularField, SceneError
+
+# A sum of element forces over a body symmetric about its centre, each force linear in its
+# depth, equals the force at the centre's depth up to rounding of the depth sums.
+SYMMETRIC_RTOL = 1e-9
+# MuJoCo's mj_ray finds the height-field surface by intersecting its triangles; it agrees with
+# the interpolation to rounding of the ray parameter.
+RAY_ATOL = 1e-9
+
+
+def scene(surface: str, body: str, asset: str = "", extra_geom: str = "") -> str:
+    return f"""<mujoco><option timestep="0.001"><flag contact="disable"/></option>
+      <asset>{asset}</asset>
+      <custom><text name="mjrft:material" data="glass_beads"/>{surface}
+        <tuple name="mjrft:intruders"><element objtype="body" objname="b" prm="0"/></tuple>
+        <numeric name="mjrft:triangles" data="600"/>
+      </custom>
+      <worldbody>{extra_geom}{body}</worldbody></mujoco>"""
+
+
+PLATE = """<body name="b" pos="0.3 -0.2 0"><freejoint/>
+  <geom type="box" size="0.01 0.015 0.002" density="2500"/></body>"""
+SPHERE = """<body name="b" pos="0 0 0"><freejoint/>
+  <geom type="sphere" size="0.01" density="2500"/></body>"""
+
+
+def hfield_asset(nrow: int, ncol: int, elevation: np.ndarray, size: str) -> str:
+    values = " ".join(f"{v:.6f}" for v in elevation.ravel())
+    return f'<hfield name="dune" nrow="{nrow}" ncol="{ncol}" size="{size}" elevation="{values}"/>'
+
+
+def hfield_geom(pos: str = "0.05 -0.02 0.01") -> str:
+    return (
+        f'<geom name="ground" type="hfield" hfield="dune" pos="{pos}" contype="0" conaffinity="0"/>'
+    )
+
+
+def placed(m: mujoco.MjModel, pos, quat, v, omega) -> mujoco.MjData:
+    d = mujoco.MjData(m)
+    d.qpos[:3], d.qpos[3:7] = pos, quat
+    d.qvel[:3], d.qvel[3:6] = v, omega
+    mujoco.mj_forward(m, d)
+    return d
+
+
+def test_height_field_surface_is_mujocos_collision_surface():
+    """The surface's height at random points equals where MuJoCo's own ray casting meets the
+    height field (its collision triangles), across the whole footprint and beyond its edge."""
+    rng = np.random.default_rng(3)
+    nrow, ncol = 7, 9
+    asset = hfield_asset(nrow, ncol, rng.uniform(size=(nrow, ncol)), "0.3 0.2 0.05 0.01")
+    m = mujoco.MjModel.from_xml_string(scene(
+        '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
+    ))  # fmt: skip
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    x = 0.05 + rng.uniform(-0.3, 0.3, 200)
+    y = -0.02 + rng.uniform(-0.2, 0.2, 200)
+    geomid = np.zeros(1, dtype=np.int32)
+    ground = None  # every geom group
+    ray = []
+    for xi, yi in zip(x, y, strict=True):
+        dist = mujoco.mj_ray(m, d, np.array([xi, yi, 1.0]), np.array([0, 0, -1.0]), ground, 1,
+                             m.body("b").id, geomid)  # fmt: skip
+        assert geomid[0] == m.geom("ground").id
+        ray.append(1.0 - dist)
+    np.testing.assert_allclose(fld.surface.height(x, y), ray, atol=RAY_ATOL)
+    np.testing.assert_allclose(ref.surface_height(fld, x, y), ray, atol=RAY_ATOL)
+    # Beyond the footprint the edge continues.
+    np.testing.assert_allclose(fld.surface.height(0.05 + 0.5, -0.02 - 0.2),
+                               fld.surface.height(0.05 + 0.3, -0.02 - 0.2), atol=0)  # fmt: skip
+
+
+def test_a_flat_height_field_equals_the_flat_surface():
+    """A height field of one elevation gives a sphere moving through the medium the wrench of
+    the flat surface at that height, to 1e-12."""
+    h = 0.01  # the geom's height: a constant elevation normalises to 0
+    asset = hfield_asset(3, 4, np.zeros((3, 4)), "0.3 0.2 0.05 0.01")
+    hf = mujoco.MjModel.from_xml_string(scene(
+        '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
+    ))  # fmt: skip
+    flat = mujoco.MjModel.from_xml_string(
+        scene(f'<numeric name="mjrft:surface_z" data="{h}"/>', SPHERE)
+    )
+    state = ([0.04, 0.01, h - 0.006], [0.9, 0.1, 0.3, 0.2], [0.1, -0.05, -0.2], [1.0, 2.0, 0.5])
+    w_hf = GranularField(hf, low_speed="off").wrench(placed(hf, *state))[1]
+    w_flat = GranularField(flat, low_speed="off").wrench(placed(flat, *state))[1]
+    assert np.linalg.norm(w_flat[:3]) > 1e-3
+    np.testing.assert_allclose(w_hf, w_flat, rtol=1e-12, atol=1e-12 * np.abs(w_flat).max())
+
+
+@pytest.mark.parametrize("slope, azimuth", [(20.0, 0.0), (30.0, 135.0)])
+def test_a_plate_on_a_slope_feels_the_flat_force_at_its_local_depth(slope, azimuth):
+    """Depth is vertical below the local surface. A horizontal plate sinking straight down feels
+    the vertical force it feels under flat ground at the depth of its centre (its faces pair up
+    symmetrically and each element's force is linear in its depth); moving obliquely and tilted,
+    its force differs from the flat one only through the depth differences across it (bounded
+    element by element) and follows the reference written plainly."""
+    slope_xml = f'<numeric name="mjrft:surface_slope" data="{slope} {azimuth}"/>'
+    tilted = mujoco.MjModel.from_xml_string(scene(slope_xml, PLATE))
+    flat = mujoco.MjModel.from_xml_string(scene("", PLATE))
+    fld, fld_flat = GranularField(tilted, low_speed="off"), GranularField(flat, low_speed="off")
+    centre = np.array([0.3, -0.2, 0.0])
+    local = float(fld.surface.height(centre[0], centre[1]))
+    downhill = np.array([np.cos(np.radians(azimuth)), np.sin(np.radians(azimuth))])
+    assert local == pytest.approx(-np.tan(np.radians(slope)) * centre[:2] @ downhill, rel=1e-12)
+    depth = 0.03
+    for quat, motion in [
+        ([1.0, 0.0, 0.0, 0.0], ([0.0, 0.0, -0.1], [0.0, 0.0, 0.0])),
+        ([np.cos(0.2), 0.0, np.sin(0.2), 0.0], ([0.05, 0.02, -0.1], [0.0, 0.0, 0.0])),
+    ]:
+        d_tilted = placed(tilted, centre + [0, 0, local - depth], quat, *motion)
+        d_flat = placed(flat, centre - [0, 0, depth], quat, *motion)
+        w_tilted, w_flat = fld.wrench(d_tilted)[1], fld_flat.wrench(d_flat)[1]
+        assert w_flat[2] > 1.0
+        be = fld.bodies[0]
+        every = np.arange(len(be.areas))
+        plain = ref.body_wrench_at(fld, d_tilted, be, every, np.zeros(3), motion[0],
+                                   d_tilted.xpos[1])  # fmt: skip
+        np.testing.assert_allclose(w_tilted, plain, rtol=1e-10, atol=1e-12)
+        states = fld.element_states(d_tilted)[0]
+        height = fld.surface.height(states.pos[:, 0], states.pos[:, 1])
+        extra = height - local  # each element's depth beyond the flat case's
+        bound = np.sum(np.linalg.norm(states.force, axis=1) * np.abs(extra)
+                       / (height - states.pos[:, 2]))  # fmt: skip
+        assert np.linalg.norm(w_tilted[:3] - w_flat[:3]) <= bound
+        if quat[0] == 1.0:
+            assert w_tilted[2] == pytest.approx(w_flat[2], rel=SYMMETRIC_RTOL)
+        else:
+            assert bound > 1e-3 * w_flat[2]  # the oblique case does test the bound
+
+
+def test_a_ball_resting_on_a_gentle_slope_stays_put():
+    """The low-speed treatment holds a body on a slope gentler than the angle of repose: a
+    sphere released on a 15-degree slope settles and then does not move."""
+    slope_xml = '<numeric name="mjrft:surface_slope" data="15 0"/>'
+    m = mujoco.MjModel.from_xml_string(scene(slope_xml, SPHERE))
+    fld = GranularField(m)
+    d = placed(m, [0.0, 0.0, 0.01], [1, 0, 0, 0], [0, 0, 0], [0, 0, 0])
+    with fld.installed():
+        for _ in range(1000):
+            mujoco.mj_step(m, d)
+        settled = d.xpos[1].copy()
+        for _ in range(2000):
+            mujoco.mj_step(m, d)
+    bottom = settled[2] - 0.01
+    assert bottom < fld.surface.height(settled[0], settled[1]) - 0.002  # it sank into the slope
+    assert np.linalg.norm(d.xpos[1] - settled) < 1e-7  # held: < 0.1 um over 2 s
+    assert np.linalg.norm(d.qvel) < 1e-9
+
+
+@pytest.mark.parametrize(
+    "custom, asset, geom, message",
+    [
+        ('<text name="mjrft:surface_hfield" data="dunes"/>', "H", "", "no such hfield.*dune"),
+        ('<text name="mjrft:surface_hfield" data="dune"/>', "H", "none", "0 geoms use it"),
+        ('<text name="mjrft:surface_hfield" data="dune"/>', "H", "rot", "is rotated"),
+        ('<numeric name="mjrft:surface_slope" data="75 0"/>', "", "", "slope = 75"),
+        ('<numeric name="mjrft:surface_slope" data="10"/>', "", "", "2 numbers"),
+        ('<numeric name="mjrft:surface_slope" data="10 0"/>'
+         '<text name="mjrft:surface_hfield" data="dune"/>', "H", "", "both"),
+        ('<numeric name="mjrft:surface_z" data="0.1"/>'
+         '<text name="mjrft:surface_hfield" data="dune"/>', "H", "", "both"),
+        ('<text name="mjrft:surface_hfield" data="dune"/>'
+         '<numeric name="mjrft:region" data="-1 -1 -1 1 1 1"/>', "H", "", "covers x"),
+    ],
+)  # fmt: skip
+def test_bad_surfaces_are_named(custom, asset, geom, message):
+    asset = hfield_asset(3, 3, np.arange(9.0).reshape(3, 3), "0.3 0.2 0.05 0.01") if asset else ""
+    extra = {"": hfield_geom() if asset else "", "none": "",
+             "rot": hfield_geom().replace("/>", ' euler="0 0 30"/>')}[geom]  # fmt: skip
+    m = mujoco.MjModel.from_xml_string(scene(custom, SPHERE, asset, extra))
+    with pytest.raises(SceneError, match=message):
+        GranularField(m)
+
+
+def test_a_python_material_refuses_a_tilted_surface():
+    slope_xml = '<numeric name="mjrft:surface_slope" data="10 0"/>'
+    m = mujoco.MjModel.from_xml_string(scene(slope_xml, SPHERE))
+    glass = Material.preset("glass_beads")
+    callables = Material.from_callables(
+        glass.fourier.alpha_x, glass.fourier.alpha_z, glass.zeta, name="glass as callables"
+    )
+    with pytest.raises(SceneError, match="flat surface only"):
+        GranularField(m, material=callables)
+
+
+def test_a_batch_on_a_height_field_gives_each_copy_the_explicit_wrench():
+    """BatchedField reads the same surface: every copy's wrench equals the explicit path's on a
+    single MjData in that copy's state."""
+    from mjrft.batch import BatchedField
+
+    rng = np.random.default_rng(5)
+    asset = hfield_asset(5, 6, rng.uniform(size=(5, 6)), "0.3 0.2 0.02 0.01")
+    m = mujoco.MjModel.from_xml_string(scene(
+        '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
+    ))  # fmt: skip
+    fld = GranularField(m, low_speed="off")
+    bf = BatchedField(fld, nsim=3, nthread=1)
+    try:
+        bf.reset()
+        qpos, qvel = bf.batch.bind("qpos"), bf.batch.bind("qvel")
+        qpos[:, :3] = [[0.0, 0.0, 0.012], [0.1, -0.05, 0.015], [-0.1, 0.1, 0.02]]
+        qvel[:, 2] = -0.1
+        bf.forward()
+        starts = [(np.array(qpos[i]), np.array(qvel[i])) for i in range(3)]
+        bf.step(1)  # the wrench of each copy's state at the start of the step
+        for i, (q, v) in enumerate(starts):
+            d = mujoco.MjData(m)
+            d.qpos[:], d.qvel[:] = q, v
+            mujoco.mj_forward(m, d)
+            one = GranularField(m, low_speed="off").wrench(d)
+            np.testing.assert_array_equal(bf.wrench[i], one)
+        assert np.all(np.abs(bf.wrench[:, 1, 2]) > 0)  # each copy is in the medium
+    finally:
+        bf.close()
