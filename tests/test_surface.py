@@ -224,3 +224,25 @@ def test_a_batch_on_a_height_field_gives_each_copy_the_explicit_wrench():
         assert np.all(np.abs(bf.wrench[:, 1, 2]) > 0)  # each copy is in the medium
     finally:
         bf.close()
+
+
+def test_a_recording_draws_the_surface_it_simulates(tmp_path):
+    """The rerun recording's world/surface mesh lies on the tilted plane, not on z = surface_z."""
+    pytest.importorskip("rerun")
+    from mjrft.app import viz
+
+    m = mujoco.MjModel.from_xml_string(
+        scene('<numeric name="mjrft:surface_slope" data="15 30"/>', SPHERE)
+    )
+    fld = GranularField(m)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    path = tmp_path / "slope.rrd"
+    with viz.Recorder(m, fld, path, every=1) as recorder:
+        recorder.log_state(0, 0.0, d)
+    (row,) = viz.read_entity(path, "world/surface")
+    vertices = np.asarray(row["Mesh3D:vertex_positions"], dtype=float).reshape(-1, 3)
+    assert len(vertices) == viz.SURFACE_SAMPLES**2
+    np.testing.assert_allclose(vertices[:, 2], fld.surface.height(vertices[:, 0], vertices[:, 1]),
+                               atol=1e-6)  # fmt: skip
+    assert np.ptp(vertices[:, 2]) > 0.005  # it does slope (7 mm over the drawn 27 mm)

@@ -74,7 +74,7 @@ from mjrft.app.recording_defaults import (
     DEFAULT_MAX_ARROWS,
     DEFAULT_STRESS_MAX_PA,
 )
-from mjrft.core import geometry
+from mjrft.core import geometry, surface
 from mjrft.field.granular_field import GranularField
 from mjrft.field.signals import HeldSignals
 
@@ -95,6 +95,8 @@ SURFACE_RGBA = (222, 194, 140, 60)
 REGION_RGBA = (150, 120, 70, 255)
 #: Half size of the drawn surface when the MJCF sets no region: model extent times this [-].
 SURFACE_EXTENT_FACTOR = 0.5
+#: Samples per side of the drawn surface when it is not flat (a tilted plane or a height field).
+SURFACE_SAMPLES = 65
 #: Default camera: distance from the look target in diagonals of the intruders' bounding box,
 #: and the direction from the target to the eye (world frame): from the front (-y, the pitch
 #: plane of the rigs faces it), a little to the right and a little below the target, so that the
@@ -458,17 +460,28 @@ class Recorder:
         half = SURFACE_EXTENT_FACTOR * float(self.model.stat.extent)
         return centre - half, centre + half
 
+    def _surface_mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vertices (k, 3) [m, world] and triangles (t, 3) of the drawn free surface: two
+        triangles when flat, else a SURFACE_SAMPLES x SURFACE_SAMPLES grid of its heights."""
+        (x0, y0), (x1, y1) = self._surface_box()
+        n = 2 if self.fld.surface.kind == surface.FLAT else SURFACE_SAMPLES
+        x, y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
+        vertices = np.stack([x, y, self.fld.surface.height(x, y)], axis=-1).reshape(-1, 3)
+        r, c = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+        a = (r * n + c).ravel()
+        triangles = np.concatenate([np.stack([a, a + 1, a + n + 1], 1),
+                                    np.stack([a, a + n + 1, a + n], 1)])  # fmt: skip
+        return vertices, triangles
+
     def _log_static(self) -> None:
         rec, fld = self.rec, self.fld
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        (x0, y0), (x1, y1) = self._surface_box()
-        z = fld.surface_z
-        corners = np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]])
+        vertices, triangles = self._surface_mesh()
         rec.log(
             "world/surface",
             rr.Mesh3D(
-                vertex_positions=corners,
-                triangle_indices=[[0, 1, 2], [0, 2, 3]],
+                vertex_positions=vertices,
+                triangle_indices=triangles,
                 albedo_factor=SURFACE_RGBA,
                 face_rendering=rr.components.MeshFaceRendering.DoubleSided,
             ),
@@ -536,8 +549,8 @@ class Recorder:
             "* `rft/<body>/force|torque/x|y|z`: RFT force [N] and torque about the CoM [N m], "
             "world frame.\n"
             "* `sensors/<name>[/i]`: MJCF sensors (MuJoCo units and frames).\n"
-            "* `world/surface`: free surface (translucent); `world/region`: the medium's box "
-            "(if any).\n\n"
+            "* `world/surface`: free surface (translucent; sampled if not flat); `world/region`: "
+            "the medium's box (if any).\n\n"
             f"A frame every {self.every} steps; timelines `step` and `sim_time`. Each frame shows "
             "the state a step integrated from and the forces computed there."
         )
