@@ -1,4 +1,5 @@
-"""Command-line interface: ``mjrft demo``, ``mjrft run``. Nothing below the app layer imports it."""
+"""Command-line interface: ``mjrft demo``, ``mjrft run``, ``mjrft sweep``, ``mjrft view``,
+``mjrft view-recording``. Nothing below the app layer imports it."""
 
 from __future__ import annotations
 
@@ -459,6 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     _add_demo(sub)
     _add_run(sub)
+    _add_sweep(sub)
     _add_view(sub)
     _add_view_model(sub)
     return p
@@ -551,6 +553,122 @@ def _add_run(sub) -> None:
     )
     _add_recording_options(r)
     r.set_defaults(func=_run)
+
+
+#: ``--ray`` without an address: a new local Ray instance.
+RAY_LOCAL = "local"
+
+
+def _add_sweep(sub) -> None:
+    """The ``mjrft sweep`` subcommand (mjrft.sweep; docs/sweeps.md)."""
+    s = sub.add_parser(
+        "sweep",
+        help="run a parameter study on local processes or Ray into a resumable results table",
+        description=(
+            "Run every run of STUDY (a TOML file: the model, the parameters and where each goes "
+            "in the model, their values, the duration and the metrics; docs/sweeps.md), each in "
+            "a worker built from scratch, and append one row per finished run to "
+            "DIR/results.csv (run id, parameters, metrics, status, error, wall time, seed, "
+            "versions), flushed as runs finish; then write a PNG per metric into DIR (a line "
+            "over one varied parameter, a heat map over two). A run that fails (its values do "
+            "not compile, it diverges, user code raises) is recorded with its error and the "
+            "others go on. On Ctrl-C or SIGTERM no new run starts, the runs in flight are "
+            "stopped, the finished rows are kept and the command says how to resume. Exit "
+            "codes: 0 done (failed runs included), 2 bad input, 130 interrupted, 143 terminated."
+        ),
+    )
+    s.add_argument("study", metavar="STUDY", help="the study description (TOML)")
+    s.add_argument("--out", required=True, metavar="DIR", help="results folder (created)")
+    s.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: all cores); with --ray and no address, the CPUs of "
+        "the local Ray instance",
+    )
+    s.add_argument(
+        "--ray",
+        nargs="?",
+        const=RAY_LOCAL,
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray (pip install 'mjrft[ray]'): a cluster's HOST:PORT, 'auto' for the one "
+        "`ray start` runs on this machine, or nothing for a new local instance",
+    )
+    s.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the sweep DIR holds: finished runs are never recomputed (refused if "
+        "the study differs from DIR's, naming what differs)",
+    )
+    s.add_argument(
+        "--plots-only",
+        action="store_true",
+        help="run nothing: draw DIR's figures from its results table",
+    )
+    s.set_defaults(func=_sweep)
+
+
+class _SweepProgress:
+    """``run_study``'s progress on stderr: runs done and the ETA, and each failed run's error."""
+
+    def __init__(self, name: str) -> None:
+        self.name, self.done, self.total, self.bar = name, 0, 0, None
+
+    def __call__(self, done: int, total: int, row: dict | None) -> None:
+        self.done, self.total = done, total
+        if row is None:
+            self.bar = _Progress(f"mjrft sweep {self.name}", after=0.0)
+            return
+        if row["status"] != "ok":
+            end = "\n" if self.bar.tty and self.bar.shown else ""
+            print(f"{end}  run {row['run_id']} failed: {row['error']}", file=sys.stderr)
+        self.bar.label = f"mjrft sweep {self.name}: {done}/{total} runs"
+        self.bar(done / total)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    import shlex
+
+    from mjrft import sweep
+
+    _warm_up()  # once here, so that the workers load the compiled code from numba's cache
+    study = sweep.Study.load(args.study)
+    out = Path(args.out)
+    if args.plots_only:
+        sweep.check_same_study(out, study)
+        for path in sweep.plot_study(study, out):
+            print(f"  {path}")
+        return 0
+    progress = _SweepProgress(study.name)
+    address = None if args.ray in (None, RAY_LOCAL) else args.ray
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        summary = sweep.run_study(
+            study, out, workers=args.workers, backend="ray" if args.ray else "local",
+            address=address, resume=args.resume, progress=progress,
+        )  # fmt: skip
+    except KeyboardInterrupt as exc:
+        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
+        again += ["--workers", str(args.workers)] if args.workers else []
+        again += ["--ray", args.ray] if args.ray else []
+        print(
+            f"\nmjrft sweep: {how} after {progress.done} of {progress.total} runs; every finished "
+            f"run is in {out / 'results.csv'}; resume with: {shlex.join(again)}",
+            file=sys.stderr,
+        )
+        return EXIT_TERMINATED if how == "terminated" else EXIT_INTERRUPTED
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    elapsed = time.perf_counter() - args.started[0]
+    print(
+        f"mjrft sweep {study.name}: {summary.computed} runs computed ({summary.failed} failed, "
+        f"see the error column), {summary.skipped} already in the table, {summary.total} in "
+        f"all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote {summary.table}"
+    )
+    return 0
 
 
 def _add_view(sub) -> None:

@@ -1,0 +1,190 @@
+"""Where a study's runs execute: in this process (``serial``), on local worker processes
+(``local``) or on Ray (``ray``). Each backend calls ``on_row(row)`` in this process as runs
+finish; on KeyboardInterrupt it stops scheduling, ends the runs in flight and re-raises.
+
+Every run builds its model and field from scratch in its worker (``executor.execute``), so a
+run's metrics do not depend on the backend, the worker or the order.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import select
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+from typing import Any
+
+from mjrft.sweep.errors import StudyError
+from mjrft.sweep.executor import STATUS_FAILED, execute, versions
+from mjrft.sweep.study import RunSpec, Study
+
+Row = dict[str, Any]
+OnRow = Callable[[Row], None]
+BACKENDS = ("local", "ray", "serial")
+
+
+def cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def serial(study: Study, runs: list[RunSpec], out: Path, on_row: OnRow) -> None:
+    """Every run in this process, one after the other."""
+    for run in runs:
+        on_row(execute(study, run, out))
+
+
+def _init_worker(sweep_pid: int) -> None:
+    # Ctrl-C reaches the whole process group: the parent decides what stops, and how; and a
+    # forked worker must not run the parent's SIGTERM handler when the parent ends it.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _exit_with(sweep_pid)
+    from mjrft.field.warmup import warm_up
+
+    warm_up()  # numba's code is in memory already (fork, forkserver) or loads from its cache
+
+
+def _exit_with(pid: int) -> None:
+    """End this worker as soon as process `pid` (the sweep) ends: after a SIGKILL of the sweep
+    nothing else would, and an idle worker would wait for work forever."""
+    try:
+        fd = os.pidfd_open(pid)  # readable once the process has ended (Linux >= 5.3)
+    except (AttributeError, OSError):
+        return
+
+    def wait() -> None:
+        select.select([fd], [], [])
+        os._exit(1)
+
+    threading.Thread(target=wait, name="exit-with-the-sweep", daemon=True).start()
+
+
+def _context() -> multiprocessing.context.BaseContext:
+    """How workers start. By fork when this process runs no other thread (as in ``mjrft
+    sweep``): a forked worker inherits mjrft's compiled code and starts in milliseconds, and
+    with a single thread there is no lock another thread could hold across the fork. Otherwise
+    from a forkserver that has imported mjrft and loaded its compiled code once (fork-safe: the
+    server starts clean), which costs about 2 s once per process; spawn where neither exists."""
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in methods:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["mjrft.sweep.preload"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def local(study: Study, runs: list[RunSpec], out: Path, on_row: OnRow, workers: int) -> None:
+    """The runs on `workers` local processes (a ProcessPoolExecutor). A worker that dies (a
+    crash in native code) takes the pool's unfinished runs with it: those then run one at a
+    time, each in a new pool, so the one that crashes again is recorded as failed."""
+    broken = _pool_pass(study, runs, out, on_row, workers)
+    for run in broken:
+        if _pool_pass(study, [run], out, on_row, 1):
+            on_row(_died(study, run, "the worker process died while running it"))
+
+
+def _pool_pass(
+    study: Study, runs: list[RunSpec], out: Path, on_row: OnRow, workers: int
+) -> list[RunSpec]:
+    """Run `runs` on a new pool; returns those lost to a dying worker."""
+    if not runs:
+        return []
+    pool = ProcessPoolExecutor(
+        max(1, min(workers, len(runs))),
+        mp_context=_context(),
+        initializer=_init_worker,
+        initargs=(os.getpid(),),
+    )
+    broken = []
+    try:
+        futures = {pool.submit(execute, study, run, out): run for run in runs}
+        for future, run in _as_completed(futures):
+            if isinstance(future.exception(), BrokenProcessPool):
+                broken.append(run)
+            else:
+                on_row(future.result())
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown(wait=True)
+    return sorted(broken, key=lambda r: r.index)
+
+
+def _as_completed(futures: dict[Future, RunSpec]) -> Iterator[tuple[Future, RunSpec]]:
+    """(future, run) as each finishes; waits in short slices so Ctrl-C is seen at once."""
+    left = set(futures)
+    while left:
+        done, left = wait(left, timeout=0.5, return_when=FIRST_COMPLETED)
+        for f in done:
+            yield f, futures[f]
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started and end the worker processes now."""
+    processes = list(getattr(pool, "_processes", {}).values())  # no public handle before 3.14
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        if p.is_alive():
+            p.terminate()
+    for p in processes:
+        p.join(timeout=5)
+
+
+def _died(study: Study, run: RunSpec, error: str) -> Row:
+    return {
+        "run_id": run.run_id, **run.values, **{m.name: float("nan") for m in study.metrics},
+        "status": STATUS_FAILED, "error": error, "wall_s": float("nan"), "seed": run.seed,
+        "versions": versions(),
+    }  # fmt: skip
+
+
+def ray_backend(
+    study: Study,
+    runs: list[RunSpec],
+    out: Path,
+    on_row: OnRow,
+    workers: int | None,
+    address: str | None,
+) -> None:
+    """The runs as Ray tasks (one CPU each): on the Ray instance already initialised in this
+    process, else on the cluster at `address` ("auto": the one ``ray start`` runs here), else on
+    a new local instance of `workers` CPUs (all cores by default), shut down afterwards."""
+    try:
+        import ray
+    except ImportError:
+        raise StudyError("the ray backend needs Ray: pip install 'mjrft[ray]'") from None
+    started = not ray.is_initialized()
+    if started:
+        kwargs = {"address": address} if address else {"num_cpus": workers or cores()}
+        ray.init(include_dashboard=False, log_to_driver=False, **kwargs)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(execute)
+        shared = ray.put(study)
+        refs = {task.remote(shared, run, str(out)): run for run in runs}
+        try:
+            while refs:
+                done, _ = ray.wait(list(refs), num_returns=1, timeout=0.5)
+                for ref in done:
+                    run = refs.pop(ref)
+                    try:
+                        on_row(ray.get(ref))
+                    except ray.exceptions.RayError as exc:  # the worker died, or lost its node
+                        on_row(_died(study, run, f"Ray: {type(exc).__name__}: {exc}"))
+        except BaseException:
+            for ref in refs:
+                ray.cancel(ref, force=True)
+            raise
+    finally:
+        if started:
+            ray.shutdown()
