@@ -147,13 +147,16 @@ class DepthPerWorkTask(base.Task):
         return self._observation(physics)
 
 
-def lowest_intruder_z(physics: GranularPhysics) -> float:
-    """Lowest world z [m] of the intruding surface-triangle centroids (current kinematics)."""
+def lowest_clearance(physics: GranularPhysics) -> float:
+    """Smallest height [m] of an intruding surface-triangle centroid above the free surface
+    under it (vertical; negative when submerged; current kinematics)."""
     data = physics.data.ptr
+    surface = physics.field.surface
     low = np.inf
     for be in physics.field.bodies:
-        z = data.xpos[be.body, 2] + be.centroids @ data.xmat[be.body].reshape(3, 3)[2]
-        low = min(low, float(z.min()))
+        rot = data.xmat[be.body].reshape(3, 3)
+        x, y, z = (data.xpos[be.body, i] + be.centroids @ rot[i] for i in range(3))
+        low = min(low, float((z - surface.height(x, y)).min()))
     return low
 
 

@@ -13,7 +13,7 @@ Action (2,), float64:
       ``MAX_PHASE_RATE`` until they reach the new offset.
 
 Observations (ordered dict, float64):
-  height (1,): torso (hip axes) height above the surface [m];
+  height (1,): torso (hip axes) height above the surface under it (vertical) [m];
   up (3,): world up in the torso frame; heading (2,): cos, sin of the torso yaw;
   velocity (3,) [m/s], angular_velocity (3,) [rad/s]: torso, in the torso frame;
   leg_phase (12,): cos, sin of the six hip angles (LF LM LR RF RM RR);
@@ -45,7 +45,7 @@ from mjrft import Material
 
 from .base import (
     forward_kinematics,
-    lowest_intruder_z,
+    lowest_clearance,
     make_environment,
     models_dir,
     resolve_random,
@@ -85,7 +85,7 @@ class HexapodWalk(base.Task):
         d.qvel[:] = 0.0
         d.ctrl[:] = 0.0
         forward_kinematics(physics)
-        d.qpos[2] += physics.field.surface_z - lowest_intruder_z(physics)
+        d.qpos[2] -= lowest_clearance(physics)  # the lowest foot point on the surface
         physics.forward()
         self._x = float(d.qpos[0])
         self._reward = 0.0
@@ -121,7 +121,7 @@ class HexapodWalk(base.Task):
         rot = d.xmat[1].reshape(3, 3)  # torso (body 1), world <- torso
         hips = d.qpos[HIP_QPOS]
         return collections.OrderedDict(
-            height=np.array([d.qpos[2] - physics.field.surface_z]),
+            height=d.qpos[2] - physics.field.surface.height(d.qpos[0:1], d.qpos[1:2]),
             up=rot[2].copy(),
             heading=np.array([rot[0, 0], rot[1, 0]]) / max(1e-12, math.hypot(rot[0, 0], rot[1, 0])),
             velocity=rot.T @ d.qvel[0:3],
@@ -139,6 +139,7 @@ def make(
     control_timestep: float = 0.02,
     material: Material | str | None = None,
     n_triangles: int | None = None,
+    slope: tuple[float, float] | None = None,
 ):
     """The ``hexapod_sand`` environment.
 
@@ -148,8 +149,17 @@ def make(
       material: medium override (preset name or Material); default the MJCF's glass beads
         (Li 2013 used poppy seeds: ``material="poppy_seeds_lp"``).
       n_triangles: RFT triangles on the body box (the legs are meshes with their own).
+      slope: (slope, downhill azimuth from +x) [degrees]: walk on a tilted plane through the
+        origin (``mjrft:surface_slope``; azimuth 0: the gait's +x is downhill, 180: uphill);
+        default the flat surface.
     """
-    model = mujoco.MjModel.from_xml_path(str(models_dir() / "hexapod_sand.xml"))
+    path = str(models_dir() / "hexapod_sand.xml")
+    if slope is None:
+        model = mujoco.MjModel.from_xml_path(path)
+    else:
+        spec = mujoco.MjSpec.from_file(path)
+        spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
+        model = spec.compile()
     physics = GranularPhysics.from_mjmodel(model, material=material, n_triangles=n_triangles)
     task = HexapodWalk(random=resolve_random(random, seed), control_timestep=control_timestep)
     return make_environment(physics, task, time_limit=time_limit, control_timestep=control_timestep)

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 import pytest
 from dm_env import specs
-from mjrft.envs import hexapod_sand
+from mjrft.envs import base, hexapod_sand
 from mjrft.envs.physics import GranularPhysics, installed_fields
 
 from mjrft import GranularField, envs
@@ -410,6 +410,27 @@ def test_hexapod_speed_rises_with_leg_frequency_at_low_frequency():
     assert speeds[0] > 0.005, speeds  # it walks forwards (m/s)
     assert speeds[1] > 1.5 * speeds[0], speeds
     assert speeds[2] > 1.5 * speeds[1], speeds
+
+
+def test_hexapod_on_a_slope_starts_on_the_surface_and_walks_faster_downhill():
+    """make(slope=...) walks the hexapod on a tilted plane: an episode starts with the lowest
+    foot point on the local surface, the height observation is above that surface, and the
+    gait (+x) is faster down a 10-degree slope than up it."""
+    speeds = {}
+    for azimuth in (0.0, 180.0):
+        env = hexapod_sand.make(seed=0, time_limit=float("inf"), slope=(10.0, azimuth))
+        try:
+            ts = env.reset()
+            physics = env.physics
+            assert abs(base.lowest_clearance(physics)) < 1e-12
+            torso = physics.data.qpos[:3]
+            local = float(physics.field.surface.height(torso[0], torso[1]))
+            assert ts.observation["height"][0] == pytest.approx(torso[2] - local, abs=1e-12)
+            speeds[azimuth] = hexapod_sand.forward_speed(1.0, env=env, cycles=2.0)
+        finally:
+            env.close()
+    assert speeds[180.0] > 0.0, speeds  # it still climbs
+    assert speeds[0.0] > speeds[180.0], speeds
 
 
 # --- gymnasium ----------------------------------------------------------------------------------
