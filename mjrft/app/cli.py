@@ -461,6 +461,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_demo(sub)
     _add_run(sub)
     _add_sweep(sub)
+    _add_fit(sub)
     _add_view(sub)
     _add_view_model(sub)
     return p
@@ -668,6 +669,44 @@ def _sweep(args: argparse.Namespace) -> int:
         f"see the error column), {summary.skipped} already in the table, {summary.total} in "
         f"all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote {summary.table}"
     )
+    return 0
+
+
+def _add_fit(sub) -> None:
+    """The ``mjrft fit`` subcommand: plate data -> a fitted medium (mjrft.app.fitting)."""
+    f = sub.add_parser(
+        "fit",
+        help="fit a medium's RFT coefficients to plate intrusion data (CSV)",
+        description=(
+            "Least-squares fit of Li 2013's Fourier coefficients to plate intrusion data: a CSV "
+            "with columns beta_deg, gamma_deg, depth_m, area_m2, fx_N, fz_N (docs/materials.md). "
+            "Writes material.xml (mjrft:zeta and mjrft:coefficients to paste into <custom>), "
+            "fit.json (coefficients with 95%% intervals) and residuals.png."
+        ),
+    )
+    f.add_argument("data", type=Path, help="CSV of plate measurements")
+    f.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    f.add_argument(
+        "--order", choices=("auto", "first", "full"), default="auto",
+        help="coefficient set: Li's first-order nine, every separable term, or auto (the full "
+        "set with at least 27 plates that determine it; default)",
+    )  # fmt: skip
+    f.set_defaults(func=_fit)
+
+
+def _fit(args: argparse.Namespace) -> int:
+    from mjrft.app import fitting
+
+    data = fitting.read_csv(args.data)
+    result = fitting.choose(data, args.order)
+    written = fitting.write_outputs(data, result, args.out)
+    print(f"mjrft fit {args.data}: {result.n} plates, {result.order}-order set, zeta = "
+          f"{result.material.zeta:.4g} N/m^3, RMS residual F_z {result.rms['z']:.3g} N, "
+          f"F_x {result.rms['x']:.3g} N")  # fmt: skip
+    for k, v in result.coefficients.items():
+        lo, hi = result.interval(k)
+        print(f"  {k:5s} {v:12.5g} N/m^3  (95%: {lo:.5g} .. {hi:.5g})")
+    print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
 
 

@@ -1,0 +1,145 @@
+"""``mjrft fit``: plate intrusion data (CSV) -> a fitted medium, its MJCF, JSON and residual plot.
+
+The CSV has a header row and one row per plate (docs/materials.md, "Fit your own medium"):
+``beta_deg, gamma_deg, depth_m, area_m2, fx_N, fz_N`` (angles as in docs/design.md 2.4; the
+plate moves in the x-z plane with its horizontal motion along +x; forces are world components on
+the plate, z up). Other columns are ignored.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from mjrft.core.fit import Fit, FitError, PlateData, basis, fit
+from mjrft.core.units import N_PER_CM3
+from mjrft.field.scene import COEFFICIENT_ORDER
+
+COLUMNS = ("beta_deg", "gamma_deg", "depth_m", "area_m2", "fx_N", "fz_N")
+DEG = np.pi / 180.0  # rad per degree: the CSV gives angles in degrees
+
+
+def read_csv(path: str | os.PathLike) -> PlateData:
+    """PlateData from a CSV of COLUMNS; raises FitError naming the file, row and column."""
+    p = Path(path)
+    try:
+        with open(p, newline="") as fh:
+            reader = csv.DictReader(fh)
+            missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+            if missing:
+                raise FitError(
+                    f"{p}: missing column(s) {', '.join(missing)}; expected {', '.join(COLUMNS)}"
+                )
+            rows = list(reader)
+    except OSError as exc:
+        raise FitError(f"cannot read {p}: {exc.strerror}") from None
+    values = np.empty((len(rows), len(COLUMNS)))
+    for i, row in enumerate(rows):
+        for j, c in enumerate(COLUMNS):
+            try:
+                values[i, j] = float(row[c])
+            except (TypeError, ValueError):
+                raise FitError(
+                    f"{p}: row {i + 2}, column {c}: {row[c]!r} is not a number"
+                ) from None
+    beta, gamma, depth, area, fx, fz = values.T
+    return PlateData(beta * DEG, gamma * DEG, depth, area, fx, fz)
+
+
+def choose(data: PlateData, order: str) -> Fit:
+    """Fit with `order` ('first', 'full', or 'auto': the full set where the data determine it
+    with at least three plates per coefficient, else the first-order set)."""
+    if order != "auto":
+        return fit(data, order)
+    if len(data.beta) >= 3 * 9:
+        try:
+            return fit(data, "full")
+        except FitError:
+            pass
+    return fit(data, "first")
+
+
+def mjcf(result: Fit) -> str:
+    """The fitted medium as MJCF ``<custom>`` elements (first-order set), else a comment saying
+    how to build it in Python."""
+    m = result.material
+    if result.order == "first":
+        generic = m.fourier.as_mapping()
+        values = " ".join(f"{generic.get(k, 0.0):.10g}" for k in COEFFICIENT_ORDER)
+        return (
+            f'<numeric name="mjrft:zeta" data="{m.zeta:.10g}"/>\n'
+            f'<numeric name="mjrft:coefficients" data="{values}"/>\n'
+        )
+    table = ", ".join(f'"{k}": {v:.6g}' for k, v in result.coefficients.items())
+    return (
+        "<!-- the full coefficient set has no MJCF form; in Python:\n"
+        f"     Material.from_table({{{table}}}, unit=1.0)  (N/m^3) -->\n"
+    )
+
+
+def summary(result: Fit) -> dict:
+    """JSON-ready description: coefficients [N/m^3 and N/cm^3] with 95 % intervals, RMS."""
+    return {
+        "order": result.order,
+        "plates": result.n,
+        "zeta_N_per_m3": result.material.zeta,
+        "coefficients_N_per_m3": {
+            k: {
+                "value": v,
+                "standard_error": result.standard_errors[k],
+                "ci95": list(result.interval(k)),
+            }
+            for k, v in result.coefficients.items()
+        },
+        "coefficients_N_per_cm3": {k: v / N_PER_CM3 for k, v in result.coefficients.items()},
+        "residual_rms_N": result.rms,
+    }
+
+
+def plot_residuals(data: PlateData, result: Fit, path: Path) -> Path:
+    """PNG: measured against fitted force of each component, and the residuals against beta."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(9, 7), constrained_layout=True)
+    scale = data.depth * data.area
+    for row, (component, measured, sign) in enumerate((("z", data.fz, 1.0), ("x", data.fx, -1.0))):
+        names = tuple(
+            k for k in result.coefficients if k[0] in ("AB" if component == "z" else "CD")
+        )
+        coef = np.array([result.coefficients[k] for k in names])
+        model = sign * scale * (basis(names, component, data.beta, data.gamma) @ coef)
+        ax = axes[row, 0]
+        ax.plot(model, measured, ".", ms=4)
+        lim = [min(model.min(), measured.min()), max(model.max(), measured.max())]
+        ax.plot(lim, lim, "k-", lw=0.8)
+        ax.set(xlabel=f"fitted F_{component} [N]", ylabel=f"measured F_{component} [N]",
+               title=f"F_{component}: RMS residual {result.rms[component]:.3g} N")  # fmt: skip
+        ax = axes[row, 1]
+        ax.scatter(np.degrees(data.beta), measured - model, c=np.degrees(data.gamma), s=8)
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set(xlabel="attack angle beta [deg] (colour: gamma)",
+               ylabel=f"residual F_{component} [N]")  # fmt: skip
+    fig.suptitle(f"mjrft fit: {result.n} plates, {result.order}-order set, "
+                 f"zeta = {result.material.zeta / N_PER_CM3:.4g} N/cm^3")  # fmt: skip
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_outputs(data: PlateData, result: Fit, out: Path) -> list[Path]:
+    """material.xml, fit.json and residuals.png in out (created)."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "material.xml").write_text(mjcf(result))
+    (out / "fit.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+    return [
+        out / "material.xml",
+        out / "fit.json",
+        plot_residuals(data, result, out / "residuals.png"),
+    ]
