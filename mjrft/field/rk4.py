@@ -23,8 +23,8 @@ stays dissipative: at each later stage, the step completed with that stage's wre
 stage on. Why: the force depends on the direction of motion and on which triangles are in the
 medium, so it can jump between stages (an edge dipping in at the half step, a slow spin whose
 direction turns), and RK4's combination of such stages is not bounded by any one of them (a
-5 kg prism gained 0.4 % of its energy in one step; docs/stability.md, "Thrown bodies"). Stage 1's
-wrench over the whole step is: stage 1 checked it (``lowspeed.adds_no_energy``).
+5 kg prism gained 0.4 % of its energy in one step; docs/stability.md, "Thrown bodies"). Holding
+stage 1's wrench is safe: stage 1 checked it (``lowspeed.adds_no_energy``).
 
 Any other pattern of passes (a user's ``mj_forward``, a new step at t0 + h) is evaluated afresh,
 which is always safe.
@@ -45,8 +45,8 @@ RK4_PER_STAGE, RK4_HOLD, RK4_FROZEN = 0.0, 1.0, 2.0
 # wrench, the weighted sum of the wrenches applied so far, the sum of the forces of stages 2-4
 # so far, stage 1's twist, other wrenches and inverse world inertia (3, 3, row-major).
 _W1, _ACC, _LIN, _TWIST, _OTHER, _II = 13, 19, 25, 28, 34, 40
-# RK4's stage weights (1, 2, 2, 1) / 6 times 6, by pass number 1-4; and per pass n, the weight
-# and the count of stages n..4 (a stage's wrench continued to the end of the step).
+# RK4's stage weights (1, 2, 2, 1) / 6 times 6, by pass number 1-4; and per pass n the summed
+# weight of passes n..4 (a stage's wrench continued to the end of the step).
 _WEIGHT = (0.0, 1.0, 2.0, 2.0, 1.0)
 _REST_WEIGHT = (0.0, 6.0, 5.0, 3.0, 1.0)
 _JIT = {"cache": True, "error_model": "numpy"}
