@@ -246,3 +246,18 @@ def test_a_recording_draws_the_surface_it_simulates(tmp_path):
     np.testing.assert_allclose(vertices[:, 2], fld.surface.height(vertices[:, 0], vertices[:, 1]),
                                atol=1e-6)  # fmt: skip
     assert np.ptp(vertices[:, 2]) > 0.005  # it does slope (7 mm over the drawn 27 mm)
+
+
+def test_run_figures_plot_the_depth_below_the_local_surface():
+    """mjrft run's figures put a body's force against its CoM depth below the surface under it:
+    a CoM moving along a tilted plane at a constant local depth has no depth range, so the
+    figure uses its horizontal travel instead."""
+    from mjrft.app import report
+    from mjrft.core import surface
+
+    plane = surface.plane(0.0, np.radians(20.0), 0.0)
+    x = np.linspace(0.0, 0.1, 50)
+    com = np.stack([x, 0 * x, plane.height(x, 0 * x) - 0.02], axis=1)
+    local = report.abscissa(com, plane)
+    assert local.name == "horizontal distance"
+    assert report.abscissa(com, 0.0).name == "depth"  # below z = 0 it sinks 3.6 cm

@@ -404,7 +404,7 @@ def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: st
         t0 = time.perf_counter()
         plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
         title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
-        pngs = report.plot_run(plots, fld.surface_z, out, title=title)
+        pngs = report.plot_run(plots, fld.surface, out, title=title)
         run.plots = time.perf_counter() - t0
     total = time.perf_counter() - args.started[0]
     outputs = [str(rec.sink.path), *map(str, pngs)]

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from mjrft.app.demos import DemoResult
+from mjrft.core.surface import Surface
 from mjrft.core.units import CM
 
 if TYPE_CHECKING:
@@ -171,18 +172,21 @@ class Abscissa(NamedTuple):
     label: str  #: axis label, with unit
 
 
-def abscissa(com: np.ndarray, surface_z: float) -> Abscissa:
+def abscissa(com: np.ndarray, surface_z: float | Surface) -> Abscissa:
     """Where a body's RFT force is plotted against: its CoM depth, or else its horizontal travel.
 
-    The CoM depth below the surface (surface_z - z) when the depth varies substantially over
-    the run: its range is at least DEPTH_SPAN_M or at least the CoM's largest horizontal
+    The CoM depth below the surface under it (height - z) when the depth varies substantially
+    over the run: its range is at least DEPTH_SPAN_M or at least the CoM's largest horizontal
     distance from its start. Otherwise (motion at about constant depth, e.g. a plate dragged
     sideways) the horizontal distance of the CoM from its start, |(x, y) - (x0, y0)|.
 
     Args:
-      com: (n, 3) CoM positions, world frame [m], n >= 1. surface_z: free-surface height [m].
+      com: (n, 3) CoM positions, world frame [m], n >= 1. surface_z: free-surface height [m],
+        or the field's Surface (a tilted plane or height field: its height under each CoM).
     """
     com = np.asarray(com, dtype=np.float64)
+    if isinstance(surface_z, Surface):
+        surface_z = surface_z.height(com[:, 0], com[:, 1])
     depth = surface_z - com[:, 2]
     travel = np.hypot(com[:, 0] - com[0, 0], com[:, 1] - com[0, 1])
     span = float(np.ptp(depth)) if len(depth) else 0.0
@@ -504,7 +508,9 @@ def _time_by_component(t: np.ndarray, bodies: list[BodySeries], title: str) -> F
     return fig
 
 
-def position_figure(bodies: list[BodySeries], surface_z: float, title: str | None = None) -> Figure:
+def position_figure(
+    bodies: list[BodySeries], surface_z: float | Surface, title: str | None = None
+) -> Figure:
     """RFT force [N] vs the body's ``abscissa`` (CoM depth, or horizontal distance at about
     constant depth), a panel per body for the MAX_POSITION_PANELS bodies of the largest peak
     |F|, POSITION_COLUMNS to a row; world frame."""
@@ -529,7 +535,7 @@ def position_figure(bodies: list[BodySeries], surface_z: float, title: str | Non
 
 
 def paper_figure(
-    t: np.ndarray, bodies: list[BodySeries], surface_z: float, title: str | None = None
+    t: np.ndarray, bodies: list[BodySeries], surface_z: float | Surface, title: str | None = None
 ) -> Figure:
     """Paper-style summary, a 2 x 2 block per body (the MAX_SUMMARY_BODIES of the largest peak
     |F|, stacked), world frame: (a) RFT force [N] vs the body's ``abscissa`` (CoM depth, or
@@ -564,7 +570,11 @@ def paper_figure(
 
 @_styled
 def plot_run(
-    rec, surface_z: float, out_dir: str | os.PathLike, stem: str = "", title: str | None = None
+    rec,
+    surface_z: float | Surface,
+    out_dir: str | os.PathLike,
+    stem: str = "",
+    title: str | None = None,
 ) -> list[Path]:
     """PNG figures of a `mjrft run` recording (``time_figure``, ``position_figure``,
     ``paper_figure``), each at most MAX_PNG_PX pixels wide and high.
@@ -589,7 +599,9 @@ def plot_run(
 
 
 @_styled
-def plot_paper(rec, surface_z: float, path: str | os.PathLike, title: str | None = None) -> Path:
+def plot_paper(
+    rec, surface_z: float | Surface, path: str | os.PathLike, title: str | None = None
+) -> Path:
     """The paper-style summary (``paper_figure``) of a run as a PNG, written atomically.
 
     Args:
