@@ -19,6 +19,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from mjrft.core.surface import Surface
 from mjrft.sweep.errors import StudyError
 
 FORCE_COMPONENTS = ("x", "y", "z", "xy", "norm")
@@ -266,13 +267,14 @@ class Metric:
                 self.first_com, self.first_t = c.com[i, self.k].copy(), float(c.t[i])
             self.last_com, self.last_t = c.com[-1, self.k].copy(), float(c.t[-1])
 
-    def value(self, data: mujoco.MjData, surface_z: float) -> float:
-        """The metric, from everything taken in and the final state `data`."""
+    def value(self, data: mujoco.MjData, surface: Surface) -> float:
+        """The metric, from everything taken in and the final state `data`; depths are below
+        the free surface under the point (vertical)."""
         kind, s = self.spec.kind, self.series
         if kind == "final_depth":
             o = self.o
-            z = data.site(o["site"]).xpos[2] if "site" in o else data.body(o["body"]).xipos[2]
-            return surface_z - float(z)
+            p = data.site(o["site"]).xpos if "site" in o else data.body(o["body"]).xipos
+            return float(surface.height(p[0], p[1])) - float(p[2])
         if kind in ("mean_force", "mean_torque"):
             return s.mean
         if kind in ("peak_force", "peak_torque"):
@@ -350,7 +352,7 @@ class Probe:
     def values(self, data: mujoco.MjData) -> dict[str, float]:
         """Every built-in metric's value (name -> float), once the run has ended at `data`."""
         self._flush(final=True)
-        return {m.spec.name: float(m.value(data, self.fld.surface_z)) for m in self.metrics}
+        return {m.spec.name: float(m.value(data, self.fld.surface)) for m in self.metrics}
 
 
 @dataclass
