@@ -96,7 +96,11 @@ def test_tags_and_no_contacts(xml: Path):
             assert prm == 0
         assert prm >= 0 and prm == int(prm)
     assert text(model, "mjrft:material") == "glass_beads"
-    assert model.numeric("mjrft:surface_z").data[0] == 0.0
+    if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, "mjrft:surface_hfield") >= 0:
+        hfield = model.hfield(text(model, "mjrft:surface_hfield")).id  # placed by its one geom
+        assert list(model.geom_dataid[model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD]) == [hfield]
+    else:
+        assert model.numeric("mjrft:surface_z").data[0] == 0.0
     assert model.numeric("mjrft:triangles").data[0] > 0
     assert np.all(model.geom_contype == 0) and np.all(model.geom_conaffinity == 0)
     assert model.nkey >= 1 and model.key(0).name == "start"
