@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mjrft.core.fit import Fit, FitError, PlateData, basis, fit
+from mjrft.core.fit import SETS, Fit, FitError, PlateData, basis, fit
 from mjrft.core.units import N_PER_CM3
 from mjrft.field.scene import COEFFICIENT_ORDER
 
@@ -110,9 +110,7 @@ def plot_residuals(data: PlateData, result: Fit, path: Path) -> Path:
     fig, axes = plt.subplots(2, 2, figsize=(9, 7), constrained_layout=True)
     scale = data.depth * data.area
     for row, (component, measured, sign) in enumerate((("z", data.fz, 1.0), ("x", data.fx, -1.0))):
-        names = tuple(
-            k for k in result.coefficients if k[0] in ("AB" if component == "z" else "CD")
-        )
+        names = SETS[result.order][component]
         coef = np.array([result.coefficients[k] for k in names])
         model = sign * scale * (basis(names, component, data.beta, data.gamma) @ coef)
         ax = axes[row, 0]

@@ -327,12 +327,8 @@ def body_wrench(
     qx, qy, qz = p_ref[0], p_ref[1], p_ref[2]
     lo_x, lo_y, lo_z = region[0, 0], region[0, 1], region[0, 2]
     hi_x, hi_y, hi_z = region[1, 0], region[1, 1], region[1, 2]
-    kind = surface_prm[surface.KIND]
-    flat = kind == surface.FLAT
-    # No surface is higher than top: the flat surface's height, a grid's highest point.
-    top = surface_prm[surface.Z0] if flat else np.inf
-    if kind == surface.GRID:
-        top = surface_prm[surface.ZMAX]
+    flat = surface_prm[surface.KIND] == surface.FLAT
+    top = surface.ceiling(surface_prm)  # an element above it is dry wherever it is
     count = 0
     for c0 in range(start, stop, CHUNK):
         k = 0

@@ -69,14 +69,23 @@ def height(prm, grid, x, y):
 
 
 @numba.njit(inline="always", **_JIT)
-def highest_near(prm, x, y, r):
-    """An upper bound [m] of the surface height within horizontal distance r [m] of (x, y)."""
+def ceiling(prm):
+    """An upper bound [m] of the surface height anywhere: the flat height, a grid's highest
+    point, or +inf for a plane."""
     kind = prm[KIND]
     if kind == FLAT:
         return prm[Z0]
     if kind == PLANE:
-        return prm[Z0] + prm[GX] * x + prm[GY] * y + r * math.hypot(prm[GX], prm[GY])
+        return np.inf
     return prm[ZMAX]
+
+
+@numba.njit(inline="always", **_JIT)
+def highest_near(prm, x, y, r):
+    """An upper bound [m] of the surface height within horizontal distance r [m] of (x, y)."""
+    if prm[KIND] == PLANE:
+        return prm[Z0] + prm[GX] * x + prm[GY] * y + r * math.hypot(prm[GX], prm[GY])
+    return ceiling(prm)
 
 
 @dataclass(frozen=True)

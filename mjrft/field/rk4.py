@@ -92,6 +92,13 @@ def write_modes(rec, decision, slow, frozen, implicit):
             rec[blk + 1 + c] = frozen[k, c]
 
 
+@numba.njit(inline="always", **_JIT)
+def guarded(m, s, k, blk):
+    """True if tagged body k (record block blk) is a free body its RK4 step evaluates per
+    stage, which the energy guard watches."""
+    return s.rk4[blk] != RK4_HOLD and m.tbody_treat[k] != 0 and has_inertia(m, m.tbody_bodyid[k])
+
+
 @numba.njit(**_JIT)
 def begin_step(m_rec, e_rec):
     """Stage 1 of an RK4 step: record, for each free body evaluated per stage (not held), what
@@ -100,7 +107,7 @@ def begin_step(m_rec, e_rec):
     for k in range(m.tbody_bodyid.shape[0]):
         b = m.tbody_bodyid[k]
         blk = RK4_HEAD + RK4_BODY * k
-        if s.rk4[blk] == RK4_HOLD or not m.tbody_treat[k] or not has_inertia(m, b):
+        if not guarded(m, s, k, blk):
             continue
         twist, other, _, ii, _ = free_body_terms(m, d, k, s.user[b])
         for c in range(6):
@@ -159,7 +166,7 @@ def guard_stage(m_rec, e_rec):
     for k in range(m.tbody_bodyid.shape[0]):
         b = m.tbody_bodyid[k]
         blk = RK4_HEAD + RK4_BODY * k
-        if s.rk4[blk] == RK4_HOLD or not m.tbody_treat[k] or not has_inertia(m, b):
+        if not guarded(m, s, k, blk):
             continue
         record = s.rk4[blk : blk + RK4_BODY]
         w = s.wrench[b]
