@@ -34,6 +34,7 @@ __all__ = [
     "Material",
     "__version__",
     "element_forces",
+    "load_model",
 ]
 
 
@@ -42,4 +43,8 @@ def __getattr__(name: str) -> Any:
         from mjrft.field.granular_field import GranularField
 
         return GranularField
+    if name == "load_model":
+        from mjrft.field.scene import load_model
+
+        return load_model
     raise AttributeError(f"module 'mjrft' has no attribute {name!r}")

@@ -171,7 +171,7 @@ def test_records_round_trip_every_field():
         d.xpos, d.xmat.reshape(-1, 3, 3), d.xipos, d.ximat.reshape(-1, 3, 3), d.cvel,
         d.subtree_com, d.geom_xpos, None, d.xfrc_applied, d.M, d.qvel, d.qacc, d.cdof, d.ctrl,
         d.act, d.actuator_length, d.actuator_velocity, d.actuator_force, d.actuator_moment,
-        d.moment_rownnz, d.moment_rowadr, d.moment_colind,
+        d.moment_rownnz, d.moment_rowadr, d.moment_colind, st.userdata,
     )  # fmt: skip
     for group, want in ((fm, fld._tables.arrays), (s, st.arrays), (dd, want_d)):
         assert group._fields == want._fields

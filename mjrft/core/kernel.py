@@ -298,7 +298,8 @@ def input_flags(pos, normal, area, vel):
 def body_wrench(
     # Model: the body's elements (body frame), then the medium
     cent, norm, area, start, stop, co, ay, zeta, surface_prm, surface_grid, use_region, region,
-    # Data in: the body's pose and motion (world frame)
+    # Data in: the ground's state (a deforming surface's soil block), the body's pose and motion
+    soil,
     rot, pos, omega, v_ref, p_ref, com,
     # Data out
     wrench, elem_force,
@@ -306,10 +307,11 @@ def body_wrench(
     """Add to wrench (6,) the RFT wrench on elements start..stop of a body; returns #acting.
 
     cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co (18,)
-    combined coefficients, ay the generic alpha_y, zeta [N/m^3]; surface_prm, surface_grid the
-    free surface (mjrft.core.surface; depth measured vertically); region (2, 3) world box of
-    the medium, used if use_region. rot (3, 3) body -> world; pos (3,) body origin [m]; omega
-    (3,) angular velocity [rad/s]; v_ref (3,) linear velocity [m/s] of the world point p_ref
+    combined coefficients, ay the generic alpha_y, zeta [N/m^3]; surface_prm, surface_grid, soil
+    the free surface (mjrft.core.surface; depth measured vertically; soil is read only by a
+    deforming one); region (2, 3) world box of the medium, used if use_region. rot (3, 3)
+    body -> world; pos (3,) body origin [m]; omega (3,) angular velocity [rad/s]; v_ref (3,)
+    linear velocity [m/s] of the world point p_ref
     (3,) moving with the body; com (3,): point about which torque is taken [m]; all world frame.
     elem_force (n, 3): forces [N] are written for elements start..stop (zero where nothing acts).
     """
@@ -328,7 +330,7 @@ def body_wrench(
     lo_x, lo_y, lo_z = region[0, 0], region[0, 1], region[0, 2]
     hi_x, hi_y, hi_z = region[1, 0], region[1, 1], region[1, 2]
     flat = surface_prm[surface.KIND] == surface.FLAT
-    top = surface.ceiling(surface_prm)  # an element above it is dry wherever it is
+    top = surface.ceiling(surface_prm, soil)  # an element above it is dry wherever it is
     count = 0
     for c0 in range(start, stop, CHUNK):
         k = 0
@@ -346,7 +348,7 @@ def body_wrench(
             px = r00 * cx + r01 * cy + r02 * cz + ox
             py = r10 * cx + r11 * cy + r12 * cz + oy
             if not flat:
-                depth = surface.height(surface_prm, surface_grid, px, py) - pz
+                depth = surface.depth(surface_prm, surface_grid, soil, px, py, pz)
                 if depth <= 0.0:
                     continue
             if use_region and (
@@ -454,7 +456,7 @@ def trajectory(cent, norm, area, co, ay, zeta, surface_z, rot, pos, lin_vel, ang
     out[:] = 0.0
     for t in range(pos.shape[0]):
         body_wrench(
-            cent, norm, area, 0, cent.shape[0], co, ay, zeta, prm, grid, False, region,
+            cent, norm, area, 0, cent.shape[0], co, ay, zeta, prm, grid, False, region, grid[0],
             rot[t], pos[t], ang_vel[t], lin_vel[t], pos[t], point[t], out[t], scratch,
         )  # fmt: skip
 
@@ -467,7 +469,7 @@ def warm_up() -> None:
     forces(one, one, np.ones(1), one, co, 0.1, 1.0, 0.0, out)
     body_wrench(
         one, one, np.ones(1), 0, 1, co, 0.1, 1.0, np.zeros(surface.PRM_SIZE), np.zeros((1, 1)),
-        False, np.zeros((2, 3)),
+        False, np.zeros((2, 3)), np.zeros(1),
         np.eye(3), np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), np.zeros(3),
         np.zeros(6), out,
     )  # fmt: skip

@@ -63,6 +63,8 @@ class BatchedField:
         self.batch = Batch(self.model, nsim=nsim, persistent=True, **kw)
         self._arrays = {name: self.batch.bind(name) for name in self._DERIVED}
         self._xfrc = self.batch.bind("xfrc_applied")
+        self._time = self.batch.bind("time")
+        self._userdata = self.batch.bind("userdata")
         self._user = np.zeros_like(self._xfrc)
         self._wrench = np.zeros_like(self._xfrc)
         # RFT threads: at least _MIN_COPIES_PER_THREAD copies each (a hand-off costs ~20 us).
@@ -88,11 +90,16 @@ class BatchedField:
         and output rows, and the thread state st's work arrays."""
         out = np.repeat(st.entry, len(sims))
         rows = {**self._arrays, "user_in": self._user, "wrench": self._wrench}
+        nsoil = self.field._tables.arrays.nsoil
         for i, sim in enumerate(sims):
-            for name, arr in rows.items():
-                if not arr[sim].flags.c_contiguous:  # the entry describes each copy's rows
+            views = {name: arr[sim] for name, arr in rows.items()}
+            if self.field.deforms:  # each copy's ground: its userdata, stamped with its time
+                views["time"] = self._time[sim : sim + 1]
+                views["userdata"] = self._userdata[sim, self._userdata.shape[1] - nsoil :]
+            for name, view in views.items():
+                if not view.flags.c_contiguous:  # the entry describes each copy's rows
                     raise RuntimeError(f"mujoco.batch's {name} rows are not contiguous")
-                out[name][i] = arr[sim].ctypes.data
+                out[name][i] = view.ctypes.data
         return out
 
     @property
@@ -154,7 +161,8 @@ class BatchedField:
             if bad:
                 sim = min(bad)
                 raise FloatingPointError(
-                    f"simulation {sim} of the batch has a non-finite intruding-body state at "
+                    f"simulation {sim} of the batch has a non-finite intruding-body state (or "
+                    "an intruder below the deforming ground) at "
                     f"time {float(self.batch.bind('time')[sim]):.6g} s; the granular field "
                     "refuses to feed NaN forward"
                 )

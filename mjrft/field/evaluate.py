@@ -46,7 +46,9 @@ def culled(m, d, g):
     if r <= 0.0:
         return False
     geom = m.tgeom_geomid[g]
-    top = surface.highest_near(m.surface_prm, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r)
+    top = surface.highest_near(
+        m.surface_prm, d.userdata, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r
+    )
     if d.geom_xpos[geom, 2] - r >= top:
         return True
     if m.use_region:
@@ -69,7 +71,7 @@ def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
         return kernel.body_wrench(
             m.elem_pos, m.elem_normal, m.elem_area, start, stop,
             m.coef, m.alpha_y, m.zeta, m.surface_prm, m.surface_grid, m.use_region != 0,
-            m.region,
+            m.region, d.userdata,
             d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com,
             wrench, elem_force,
         )  # fmt: skip

@@ -38,7 +38,8 @@ from mjrft.field.model import (
 )
 from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.field.signals import HeldSignals
-from mjrft.field.state import DataState, States
+from mjrft.field.soil_view import Soil
+from mjrft.field.state import DataState, States, soil_block
 from mjrft.field.tables import STATS
 
 
@@ -92,11 +93,13 @@ class GranularField:
         tolerance: float | None = None,
         low_speed: str | None = None,
         stick_reach: float | None = None,
+        deform_cell: float | None = None,
+        repose: float | None = None,
     ) -> None:
         self.model = model
         self.scene: Scene = scene_from_model(
             model, material, n_triangles=n_triangles, tolerance=tolerance,
-            low_speed=low_speed, stick_reach=stick_reach,
+            low_speed=low_speed, stick_reach=stick_reach, deform_cell=deform_cell, repose=repose,
         )  # fmt: skip
         #: Tagged bodies (id order): their elements in the body frame.
         self.bodies: tuple[BodyElements, ...]
@@ -163,6 +166,21 @@ class GranularField:
         return self.scene.surface
 
     @property
+    def deforms(self) -> bool:
+        """True if the ground deforms and remembers (``mjrft:deform_cell``; ``soil``)."""
+        return self.scene.surface.kind == surface.SOIL
+
+    def soil(self, data: mujoco.MjData) -> Soil:
+        """The deforming ground of one MjData (read and write; ``mjrft.field.soil_view``)."""
+        if not self.deforms:
+            raise ValueError(
+                "this field's ground does not deform: add <numeric name='mjrft:deform_cell' "
+                "data='0.002'/> (and mjrft:region) or pass deform_cell= to GranularField"
+            )
+        block = soil_block(data, self._tables.arrays.nsoil)
+        return Soil(self.scene.surface, block, self.model, self._state(data).arrays.soil_stats)
+
+    @property
     def region(self) -> np.ndarray | None:
         """(2, 3) world box of the medium [m] (min corner, max corner), or None."""
         return self.scene.region
@@ -218,9 +236,17 @@ class GranularField:
             st.registered = False
 
     def _raise_bad(self, data: mujoco.MjData, status: int) -> None:
-        be = self.bodies[-1 - status]
         dt = float(self.model.opt.timestep)
         step = round(data.time / dt) if dt > 0 and np.isfinite(data.time) else -1
+        if status <= passive.BELOW_GROUND:
+            be = self.bodies[passive.BELOW_GROUND - status]
+            raise ValueError(
+                f"body '{be.name}' reaches below the bottom of the deforming ground (mjrft:region "
+                f"zmin = {self.scene.region[0, 2]:g} m) at time {data.time:.6g} s (step {step}): "
+                "the ground is excavated from above, so an intruder must enter it from above "
+                "its surface; lower the region's zmin or start the body above the ground"
+            )
+        be = self.bodies[-1 - status]
         raise FloatingPointError(
             f"body '{be.name}' has a non-finite position or velocity at time {data.time:.6g} s "
             f"(step {step}); the granular field refuses to feed NaN forward (check the timestep "

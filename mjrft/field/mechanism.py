@@ -203,7 +203,7 @@ def submerged(m, d, s, k):
             for c in range(3):
                 x += d.xmat[b, 0, c] * m.elem_pos[e, c]
                 y += d.xmat[b, 1, c] * m.elem_pos[e, c]
-            if z < surface.height(m.surface_prm, m.surface_grid, x, y):
+            if surface.depth(m.surface_prm, m.surface_grid, d.userdata, x, y, z) > 0.0:
                 return True
     return False
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from mjrft.core import surface
 from mjrft.core.elements import ElementSet
 from mjrft.field import layout, lowspeed
 from mjrft.field.scene import Intruder, Scene, geom_elements
@@ -26,6 +27,8 @@ class BodyElements:
       body: body id; name: body name.
       centroids: (n, 3) [m], normals: (n, 3) unit, areas: (n,) [m^2]; body frame.
       geoms: (k,) tagged geom ids; segments: (k + 1,) element offsets of each geom's block.
+      corners: (n, 9) each triangle's three vertices [m], body frame, counter-clockwise seen
+        from outside (the deforming ground rasterises them: mjrft.core.soil).
     """
 
     body: int
@@ -35,6 +38,7 @@ class BodyElements:
     areas: np.ndarray
     geoms: np.ndarray
     segments: np.ndarray
+    corners: np.ndarray
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -69,6 +73,7 @@ def body_elements(
                 areas=np.concatenate([es.areas for _, es in items]),
                 geoms=np.array([intr.geom for intr, _ in items], dtype=np.int64),
                 segments=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                corners=np.concatenate([es.vertices[es.faces].reshape(-1, 9) for _, es in items]),
             )
         )
     return tuple(bodies), geoms
@@ -222,6 +227,7 @@ def build_tables(
         **_mechanism_specs(model, bodies, mech),
     })  # fmt: skip
     addr = layout.model_addresses(model)
+    soil = scene.surface.kind == surface.SOIL
     material = scene.material
     region = scene.region
     arrays = FieldModel(
@@ -262,6 +268,9 @@ def build_tables(
         actuator_forcerange=model.actuator_forcerange,
         surface_prm=f64(scene.surface.prm),
         surface_grid=f64(scene.surface.grid),
+        soil=int(soil),
+        nsoil=surface.soil_block(*scene.surface.grid.shape) if soil else 1,
+        elem_vert=f64(np.concatenate([be.corners for be in bodies]) if soil else np.zeros((1, 9))),
     )
     nrow, ncol = scene.surface.grid.shape
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),

@@ -17,13 +17,15 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from mjrft.field import lowspeed, mechanism, ownership, rk4
+from mjrft.field import deform, lowspeed, mechanism, ownership, rk4
 from mjrft.field.evaluate import first_bad_body, pure_wrenches, twist_wrench
 from mjrft.field.tables import ENTRY_SIZE, unpack
 
 INSTALLED, EXPLICIT, BATCH, QUERY = 0, 1, 2, 3
-#: Status of a pass: OK, or -1 - k where tagged body k has a non-finite position or velocity.
+#: Status of a pass: OK, or -1 - k where tagged body k has a non-finite position or velocity,
+#: or BELOW_GROUND - k where it reaches below the deforming ground's bottom (mjrft:region zmin).
 OK = 0
+BELOW_GROUND = -1_000_000
 _JIT = {"cache": True, "error_model": "numpy"}
 
 
@@ -52,7 +54,7 @@ def frozen_wrenches(m_rec, e_rec):
 
 @numba.njit(**_JIT)
 def forward(m_rec, e_rec, mode):
-    """One pass of the field on one MjData; returns OK or -1 - (bad tagged body).
+    """One pass of the field on one MjData; returns OK or a failure status (``OK``).
 
     m_rec, e_rec: addresses of the field's model record and the MjData's entry record
     (``mjrft.field.tables``). The treatment balances the user part of xfrc_applied (INSTALLED)
@@ -73,6 +75,11 @@ def forward(m_rec, e_rec, mode):
         held = rk4.stage_held(d.time[0], m.opt_timestep[0], s.rk4)
         if held:
             rk4.read_modes(s.rk4, s.keep, s.frz)
+    if m.soil and mode != QUERY and not held and deform.due(m, d):
+        below = deform.update(m_rec, e_rec)
+        if below >= 0:
+            s.status[0] = BELOW_GROUND - below
+            return s.status[0]
     evaluated, acting = pure_wrenches(m_rec, e_rec)
     if held:
         ne, na = frozen_wrenches(m_rec, e_rec)
@@ -132,12 +139,14 @@ def batch(m_rec, entries, n, mode):
     and ``wrench`` its output rows; their other FieldData arrays are one thread's work arrays.
     mode: BATCH (an argument rather than the constant, so that numba compiles ``forward`` once
     for every caller instead of once per literal mode). Returns OK, or -1 - i for the first
-    simulation i whose state is not finite (then no wrench is written).
+    simulation i whose state is not finite (then no wrench is written) or whose pass failed
+    (an intruder below the deforming ground's bottom).
     """
     size = np.uint64(ENTRY_SIZE)
     for i in range(n):
         if first_bad_body(m_rec, entries + np.uint64(i) * size) >= 0:
             return -1 - i
     for i in range(n):
-        forward(m_rec, entries + np.uint64(i) * size, mode)
+        if forward(m_rec, entries + np.uint64(i) * size, mode) != OK:
+            return -1 - i
     return OK

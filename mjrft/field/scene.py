@@ -15,6 +15,12 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          by the geom that uses it
       <numeric name="mjrft:region" data="xmin ymin zmin xmax ymax zmax"/>
                                                          optional box bounding the medium [m]
+      <numeric name="mjrft:deform_cell" data="0.002"/>   the ground deforms and remembers, on a
+                                                         grid of this cell [m] over the region
+                                                         (mjrft.core.soil; needs mjrft:region and
+                                                         <size nuserdata>, see soil_userdata)
+      <numeric name="mjrft:repose" data="30"/>           its angle of repose [deg] (default: the
+                                                         material's, mjrft.core.soil.REPOSE_DEG)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick, free or off
@@ -39,7 +45,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft.core import geometry
+from mjrft.core import geometry, soil
 from mjrft.core import surface as surface_mod
 from mjrft.core.material import PRESETS, FourierCoefficients, Material, warn_if_unusual_zeta
 from mjrft.core.surface import Surface
@@ -58,6 +64,8 @@ KEYS = {
         "tolerance",
         "stick_reach",
         "max_triangles",
+        "deform_cell",
+        "repose",
     ),
     "tuple": ("intruders",),
 }
@@ -258,8 +266,13 @@ def scene_from_model(
     tolerance: float | None = None,
     low_speed: str | None = None,
     stick_reach: float | None = None,
+    deform_cell: float | None = None,
+    repose: float | None = None,
 ) -> Scene:
     """Read and validate the scene; the keyword arguments override the MJCF's.
+
+    deform_cell [m] and repose [deg]: the deforming ground (``mjrft:deform_cell``,
+    ``mjrft:repose``); deform_cell = 0 turns off a deformation the MJCF asks for.
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
     ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick", "free" or "off") and
@@ -298,6 +311,7 @@ def scene_from_model(
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
     free_surface = _surface(model, custom, surface_z, region)
+    free_surface = _deforming(model, custom, free_surface, region, material, deform_cell, repose)
     default_tri, default_tol = _default_resolution(model, custom)
     if "intruders" not in custom:
         raise SceneError(
@@ -400,6 +414,84 @@ def _hfield_surface(model, name: str, region) -> Surface:
                 "enlarge the hfield or shrink the region"
             )
     return out
+
+
+def soil_userdata(cell: float, region: np.ndarray) -> int:
+    """Entries of ``userdata`` a deforming ground of cell [m] over region (2, 3) needs (the
+    value for ``<size nuserdata>``; the field takes the last ones)."""
+    nrow, ncol = soil.grid_shape(region, cell)
+    return surface_mod.soil_block(nrow, ncol)
+
+
+def load_model(
+    source: str | mujoco.MjSpec, *, deform_cell: float | None = None, repose: float | None = None
+) -> mujoco.MjModel:
+    """Compile an MJCF file path (or an MjSpec) with room in ``userdata`` for its deforming
+    ground: ``<size nuserdata>`` grows to what mjrft:deform_cell (or deform_cell [m], which
+    also sets or overrides it, 0 switching it off; repose [deg] likewise mjrft:repose) needs."""
+    spec = source if isinstance(source, mujoco.MjSpec) else mujoco.MjSpec.from_file(str(source))
+    for key, value in (("deform_cell", deform_cell), ("repose", repose)):
+        if value is not None:
+            found = [n for n in spec.numerics if n.name == PREFIX + key]
+            if found:
+                found[0].data = [float(value)]
+            else:
+                spec.add_numeric(name=PREFIX + key, data=[float(value)])
+    model = spec.compile()
+    custom = _custom(model)
+    cell = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
+    region = _region(model, custom)
+    if cell is None or float(cell[0]) <= 0.0 or region is None:
+        return model
+    nrow, ncol = soil.grid_shape(region, float(cell[0]))
+    need = surface_mod.soil_block(nrow, ncol)
+    if model.nuserdata >= need or nrow * ncol > soil.MAX_VERTICES:  # the field names the cap
+        return model
+    spec.nuserdata = need
+    return spec.compile()
+
+
+def _deforming(model, custom, initial: Surface, region, material, cell, repose) -> Surface:
+    """The deforming ground over the region if mjrft:deform_cell (or deform_cell) asks for it,
+    else the initial surface; checks the cell, the grid's size, the angle of repose and that
+    the MjModel has userdata for it."""
+    where = f"<numeric name='{PREFIX}deform_cell'>" if cell is None else "deform_cell"
+    if cell is None:
+        value = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
+        cell = None if value is None else float(value[0])
+    if cell is None or cell == 0.0:
+        return initial
+    if not (math.isfinite(cell) and cell > 0.0):
+        raise SceneError(f"{where} = {cell!r}: expected a cell size > 0 [m] (e.g. 0.002)")
+    if region is None:
+        raise SceneError(
+            f"{where}: the deforming ground covers the medium's region: add <numeric name='"
+            f"{PREFIX}region' data='xmin ymin zmin xmax ymax zmax'/>"
+        )
+    nrow, ncol = soil.grid_shape(region, cell)
+    if nrow * ncol > soil.MAX_VERTICES:
+        raise SceneError(
+            f"{where} = {cell:g} m: the grid over {PREFIX}region would have {nrow} x {ncol} = "
+            f"{nrow * ncol:,} vertices ({24 * nrow * ncol / 2**20:.0f} MiB per MjData), over the "
+            f"cap of {soil.MAX_VERTICES:,}; use a coarser cell or a smaller region"
+        )
+    if repose is None:
+        value = _numeric_field(model, custom, "repose", (1,), "one angle in (0, 90) [deg]")
+        repose = soil.repose_of(material.name) if value is None else float(value[0])
+    if not 0.0 < repose < 90.0:
+        raise SceneError(
+            f"angle of repose = {repose!r} deg ({PREFIX}repose): expected a value in (0, 90) "
+            "degrees (dry sands and glass beads: 20-40)"
+        )
+    need = surface_mod.soil_block(nrow, ncol)
+    if model.nuserdata < need:
+        raise SceneError(
+            f"{where} = {cell:g} m: the ground's {nrow} x {ncol} grid keeps its state in the "
+            f"MjData's userdata and needs {need} entries, the model has {model.nuserdata}: add "
+            f'<size nuserdata="{need}"/> to the MJCF (or load it with '
+            "mjrft.load_model, which sizes it)"
+        )
+    return soil.grid_over(initial, region, cell, repose)
 
 
 def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:

@@ -14,6 +14,7 @@ import weakref
 import mujoco
 import numpy as np
 
+from mjrft.core.soil import N_SOIL_STATS
 from mjrft.field import layout
 from mjrft.field.model import StaticTables
 from mjrft.field.ownership import XFRC_HISTORY
@@ -40,17 +41,23 @@ def _mjdata_arrays(data: mujoco.MjData | None, fm, na: int) -> tuple:
             np.zeros(fm.nC), np.zeros(nv), np.zeros(nv), np.zeros((nv, 6)),
             np.zeros(fm.nu), np.zeros(max(1, na)), np.zeros(fm.nu), np.zeros(fm.nu),
             np.zeros(fm.nu), np.zeros(fm.nJmom), np.zeros(fm.nu, np.int32),
-            np.zeros(fm.nu, np.int32), np.zeros(fm.nJmom, np.int32),
+            np.zeros(fm.nu, np.int32), np.zeros(fm.nJmom, np.int32), np.zeros(fm.nsoil),
         )  # fmt: skip
         return arrays, arrays.time.ctypes.data
+    userdata = soil_block(data, fm.nsoil) if fm.soil else np.zeros(1)
     arrays = MjDataArrays(
         data.xpos, data.xmat.reshape(nbody, 3, 3), data.xipos, data.ximat.reshape(nbody, 3, 3),
         data.cvel, data.subtree_com, data.geom_xpos, np.zeros(1), data.xfrc_applied,
         data.M, data.qvel, data.qacc, data.cdof, data.ctrl, data.act, data.actuator_length,
         data.actuator_velocity, data.actuator_force, data.actuator_moment, data.moment_rownnz,
-        data.moment_rowadr, data.moment_colind,
+        data.moment_rowadr, data.moment_colind, userdata,
     )  # fmt: skip
     return arrays, layout.time_address(data)
+
+
+def soil_block(data: mujoco.MjData, nsoil: int) -> np.ndarray:
+    """The soil block of a deforming surface: a view of the last nsoil entries of userdata."""
+    return data.userdata[data.userdata.shape[0] - nsoil :]
 
 
 class DataState:
@@ -81,6 +88,7 @@ class DataState:
         na = int(tables.model.na)
         self.mjdata, time_address = _mjdata_arrays(data, fm, na)
         nv = fm.nv
+        soil_shape = fm.surface_grid.shape if fm.soil else (1, 1)
         f8, i8 = np.float64, np.int64
         small = arena({  # touched every pass: side by side (tables.arena)
             "status": ((1,), i8, 0), "cull": ((ng,), i8, 0), "keep": ((nk,), i8, 0),
@@ -112,9 +120,16 @@ class DataState:
             mech_A=np.zeros((6 * nk, 6 * nk)),
             mech_S=np.zeros((6 * nk, 6 * nk)),
             mech_vec=np.zeros((3, max(nv, 6 * nk))),
+            soil_floor=np.full(soil_shape, np.inf),
+            soil_owner=np.full(soil_shape, -1, dtype=np.int64),
+            soil_box=np.zeros((nk + 1, 4)),
+            soil_stats=np.zeros(N_SOIL_STATS),
         )
         self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring, "na": na})
         self.entry["time"] = time_address
+        #: The soil block (a view of userdata) or, without a deforming ground, its stand-in,
+        #: which only this reference keeps alive.
+        self.userdata = self.mjdata.userdata
         if data is not None:  # views of an MjData keep it alive: keep only their addresses
             self.mjdata = None
 

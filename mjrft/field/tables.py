@@ -28,6 +28,7 @@ import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
+from mjrft.core.soil import N_SOIL_STATS
 from mjrft.core.surface import PRM_SIZE
 
 #: Work counters per FieldData: passes evaluated, triangles evaluated, triangles acting, and of
@@ -106,6 +107,9 @@ class FieldModel(NamedTuple):
     actuator_forcerange: np.ndarray  # (nu, 2) live
     surface_prm: np.ndarray  # (surface.PRM_SIZE,) the free surface (mjrft.core.surface)
     surface_grid: np.ndarray  # (surface_nrow, surface_ncol) its grid heights [m], world frame
+    soil: int  # 1 if the surface deforms (kind SOIL: mjrft.core.soil)
+    nsoil: int  # size of the soil block (surface.soil_block; 1 if the surface does not deform)
+    elem_vert: np.ndarray  # (nelem, 9) triangle vertices, body frame [m] (soil; else (1, 9))
 
 
 class MjDataArrays(NamedTuple):
@@ -133,6 +137,7 @@ class MjDataArrays(NamedTuple):
     moment_rownnz: np.ndarray  # (nu,) int32
     moment_rowadr: np.ndarray  # (nu,) int32
     moment_colind: np.ndarray  # (nJmom,) int32
+    userdata: np.ndarray  # (nsoil,) the soil block: the last nsoil entries of userdata
 
 
 class FieldData(NamedTuple):
@@ -179,6 +184,10 @@ class FieldData(NamedTuple):
     mech_A: np.ndarray  # (6 ntbody, 6 ntbody) work: J M^-1 J^T
     mech_S: np.ndarray  # (6 ntbody, 6 ntbody) work: the held bodies' block, factored
     mech_vec: np.ndarray  # (3, max(nv, 6 ntbody)) work vectors
+    soil_floor: np.ndarray  # (nrow, ncol) work: intruders' lowest point over each vertex [m]
+    soil_owner: np.ndarray  # (nrow, ncol) work: the tagged body occupying it, -1 none
+    soil_box: np.ndarray  # (ntbody + 1, 4) work: vertex boxes of footprints, and their union
+    soil_stats: np.ndarray  # (soil.N_SOIL_STATS,) counters (soil.SOIL_STATS)
 
 
 def _sizes(names: tuple[str, ...]) -> list[tuple[str, type]]:
@@ -189,7 +198,7 @@ _MODEL_SIZES = ("nelem", "ntgeom", "ntbody", "surface_nrow", "surface_ncol")
 _FLOAT_SCALARS = {"surface_z", "zeta", "alpha_y", "reach", "jacobian_step", "rk4_hold_steps"}
 _INT_SCALARS = {
     "nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4", "nv",
-    "nC", "mech", "nu", "nJmom", "dsbl_actuation", "dsbl_clampctrl",
+    "nC", "mech", "nu", "nJmom", "dsbl_actuation", "dsbl_clampctrl", "soil", "nsoil",
 }  # fmt: skip
 
 
@@ -277,6 +286,7 @@ def unpack_model(address):
     """FieldModel from the address of its MODEL_RECORD."""
     t = numba.carray(_model_ptr(address), 1)[0]
     nb, ne, ng, nk = t.nbody, t.nelem, t.ntgeom, t.ntbody
+    nvert = ne if t.soil else 1
     return FieldModel(
         t.nbody, t.ngeom, _f(t.elem_pos, (ne, 3)), _f(t.elem_normal, (ne, 3)),
         _f(t.elem_area, ne), _i(t.tgeom_geomid, ng), _i(t.tgeom_tbody, ng),
@@ -296,7 +306,8 @@ def unpack_model(address):
         _i(t.actuator_forcelimited, t.nu), _f(t.actuator_gainprm, (t.nu, 10)),
         _f(t.actuator_biasprm, (t.nu, 10)), _f(t.actuator_ctrlrange, (t.nu, 2)),
         _f(t.actuator_forcerange, (t.nu, 2)), _f(t.surface_prm, PRM_SIZE),
-        _f(t.surface_grid, (t.surface_nrow, t.surface_ncol)),
+        _f(t.surface_grid, (t.surface_nrow, t.surface_ncol)), t.soil, t.nsoil,
+        _f(t.elem_vert, (nvert, 9)),
     )  # fmt: skip
 
 
@@ -306,6 +317,7 @@ def unpack_entry(m, address):
     t = numba.carray(_entry_ptr(address), 1)[0]
     nb, ne, ng, nk = m.nbody, m.elem_area.shape[0], m.tgeom_geomid.shape[0], m.tbody_bodyid.shape[0]
     nv = m.nv
+    soil_shape = (m.surface_grid.shape[0], m.surface_grid.shape[1]) if m.soil else (1, 1)
     d = MjDataArrays(
         _f(t.xpos, (nb, 3)), _f(t.xmat, (nb, 3, 3)), _f(t.xipos, (nb, 3)),
         _f(t.ximat, (nb, 3, 3)), _f(t.cvel, (nb, 6)), _f(t.subtree_com, (nb, 3)),
@@ -314,6 +326,7 @@ def unpack_entry(m, address):
         _f(t.ctrl, m.nu), _f(t.act, t.na), _f(t.actuator_length, m.nu),
         _f(t.actuator_velocity, m.nu), _f(t.actuator_force, m.nu), _f(t.actuator_moment, m.nJmom),
         _i32(t.moment_rownnz, m.nu), _i32(t.moment_rowadr, m.nu), _i32(t.moment_colind, m.nJmom),
+        _f(t.userdata, m.nsoil),
     )  # fmt: skip
     s = FieldData(
         _f(t.user, (nb, 6)), _f(t.written, (nb, 6)), _f(t.user_in, (nb, 6)),
@@ -331,6 +344,8 @@ def unpack_entry(m, address):
         _f(t.mech_L, (nv, nv)),
         _f(t.mech_J, (6 * nk, nv)), _f(t.mech_X, (6 * nk, nv)), _f(t.mech_A, (6 * nk, 6 * nk)),
         _f(t.mech_S, (6 * nk, 6 * nk)), _f(t.mech_vec, (3, max(nv, 6 * nk))),
+        _f(t.soil_floor, soil_shape), _i(t.soil_owner, soil_shape), _f(t.soil_box, (nk + 1, 4)),
+        _f(t.soil_stats, N_SOIL_STATS),
     )  # fmt: skip
     return d, s
 
