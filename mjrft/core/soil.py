@@ -8,14 +8,15 @@ state), is its surface height h, its compacted level c <= h and its memory p >= 
 depth of a point at height z in the column is (h + p) - z below c and h - z between c and h
 (``surface.soil_depth``). Pristine ground has c = h, p = 0, so pristine depth is h - z.
 
-One update (``settle``) follows the intruders to a new configuration:
+One update (``mjrft.field.deform.update``, with the functions below) follows the intruders to a
+new configuration:
 
 1. *Footprints* (``footprint``): every downward-facing triangle of an intruder (its lower
    surface, seen from above) is rasterised onto the vertices below it; a vertex whose floor (the
    lowest such triangle over it) lies below its surface h is occupied.
-2. *Excavation*: an occupied column is cut down to the floor. The medium at the floor keeps the
-   depth it had: p grows by the height removed (Chrono SCM's sinkage memory plays this role in
-   Bekker-Wong soil), c = h = floor.
+2. *Excavation*: an occupied column is cut down to the floor, which becomes its compacted level
+   (c = h = floor) and remembers as its depth reference the larger of the old surface h and the
+   old c + p (Chrono SCM's sinkage memory plays this role in Bekker-Wong soil).
 3. *Deposition*: each intruder's excavated volume is spread over the rim of its footprint (the
    unoccupied vertices next to it), weighted towards the horizontal motion of the footprint's
    centre: a vertical intrusion raises an even rim, a horizontal one bulldozes ahead of it. It
@@ -23,7 +24,8 @@ One update (``settle``) follows the intruders to a new configuration:
 4. *Relaxation*: wherever two neighbouring vertices (along x, y and both diagonals) differ by
    more than tan(repose) times their distance, material moves from the higher to the lower one
    (half the excess, so the pair ends exactly at the repose slope), sweep after sweep over the
-   box of recent activity, never into or out of an occupied column or the grid's edge ring.
+   box of recent activity, never into or out of a column an intruder presses on or the grid's
+   edge ring, and into the gap under a hovering intruder only up to its floor.
 
 Every move subtracts from one vertex exactly what it adds to another, and the edge ring never
 changes, so the volume under the surface (dx dy times the sum of h over the vertices) is
@@ -72,14 +74,6 @@ MAX_VERTICES = 2_000_000
 #: relaxation hit MAX_SWEEPS, triangles rasterised, footprint vertices at the edge ring.
 N_SOIL_STATS = 6
 SOIL_STATS = ("updates", "excavated", "unplaced", "unrelaxed", "rasterised", "edge")
-
-
-@numba.njit(inline="always", **_JIT)
-def _box_add(box, r, c):
-    box[0] = min(box[0], r)
-    box[1] = max(box[1], r)
-    box[2] = min(box[2], c)
-    box[3] = max(box[3], c)
 
 
 @numba.njit(inline="always", **_JIT)
@@ -133,7 +127,7 @@ def footprint(prm, vert, start, stop, rot, pos, k, floor, owner, box, top):
                 if z < floor[r, c]:
                     floor[r, c] = z
                     owner[r, c] = k
-                    _box_add(box, r, c)
+                    union(box, r, r, c, c)
     return done
 
 
@@ -368,11 +362,6 @@ def union(box, r0, r1, c0, c1):
         box[3] = max(box[3], c1)
 
 
-def empty_box() -> np.ndarray:
-    """A (4,) vertex box covering nothing."""
-    return np.array([np.iinfo(np.int32).max, -1, np.iinfo(np.int32).max, -1], dtype=np.float64)
-
-
 #: Default angle of repose [deg] per material preset, the relaxation's limit slope. Smooth
 #: spherical glass beads pile at 20-26 deg (e.g. Zhou et al., Phys. Rev. E 64:021301 (2001),
 #: monosized spheres, experiment and DEM; review: Al-Hashemi & Al-Amoudi, Powder Technology
@@ -428,7 +417,6 @@ __all__ = [
     "SOIL_TIME",
     "block_views",
     "deposit",
-    "empty_box",
     "excavate",
     "finish",
     "footprint",

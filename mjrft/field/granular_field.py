@@ -178,7 +178,7 @@ class GranularField:
                 "data='0.002'/> (and mjrft:region) or pass deform_cell= to GranularField"
             )
         block = soil_block(data, self._tables.arrays.nsoil)
-        return Soil(self.scene.surface, block, self.model, self._state(data).arrays.soil_stats)
+        return Soil(self.scene.surface, block, self._state(data).arrays.soil_stats)
 
     @property
     def region(self) -> np.ndarray | None:

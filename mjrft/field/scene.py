@@ -18,7 +18,7 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:deform_cell" data="0.002"/>   the ground deforms and remembers, on a
                                                          grid of this cell [m] over the region
                                                          (mjrft.core.soil; needs mjrft:region and
-                                                         <size nuserdata>, see soil_userdata)
+                                                         <size nuserdata>, see load_model)
       <numeric name="mjrft:repose" data="30"/>           its angle of repose [deg] (default: the
                                                          material's, mjrft.core.soil.REPOSE_DEG)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
@@ -414,13 +414,6 @@ def _hfield_surface(model, name: str, region) -> Surface:
                 "enlarge the hfield or shrink the region"
             )
     return out
-
-
-def soil_userdata(cell: float, region: np.ndarray) -> int:
-    """Entries of ``userdata`` a deforming ground of cell [m] over region (2, 3) needs (the
-    value for ``<size nuserdata>``; the field takes the last ones)."""
-    nrow, ncol = soil.grid_shape(region, cell)
-    return surface_mod.soil_block(nrow, ncol)
 
 
 def load_model(

@@ -8,7 +8,6 @@ reads and writes it in place.
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
 
 from mjrft.core import soil, surface
@@ -21,10 +20,8 @@ class Soil:
     Vertex (r, c) lies at (x[c], y[r]); it stands for the column of one cell (dx dy) around it.
     """
 
-    def __init__(
-        self, ground: Surface, block: np.ndarray, model: mujoco.MjModel, counters: np.ndarray
-    ) -> None:
-        self._ground, self._block, self._model = ground, block, model
+    def __init__(self, ground: Surface, block: np.ndarray, counters: np.ndarray) -> None:
+        self._ground, self._block = ground, block
         self._dh, self._dc, self._p = soil.block_views(ground.prm, block)
         self._counters = counters
 
