@@ -171,9 +171,9 @@ RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
 #: Seconds of warm-up after which `mjrft run` says it is compiling (a cache load takes ~1 s).
 WARM_UP_NOTICE_S = 2.0
-#: Cold-start compilation time to announce [s]: 39-57 s measured on 2-core VMs
-#: (benchmarks/RESULTS.md, "Kernel").
-COLD_START_S = "40-60"
+#: Cold-start compilation time to announce: 148 s measured on the 2-core Zen 5 VM
+#: (benchmarks/RESULTS.md, "Kernel"; `mjrft demo` 152 s in all).
+COLD_START_S = "2-3 minutes"
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
 
@@ -329,7 +329,7 @@ def _warm_up() -> float:
         WARM_UP_NOTICE_S,
         lambda: print(
             "mjrft: compiling the field's numba code for this environment, once: about "
-            f"{COLD_START_S} s on a 2-core machine; later runs load it from numba's cache in "
+            f"{COLD_START_S} on a 2-core machine; later runs load it from numba's cache in "
             "about a second",
             file=sys.stderr,
             flush=True,
