@@ -210,3 +210,21 @@ def test_cli_options_reach_the_run_and_run_json(tmp_path, capsys):
     assert "has no callable 'no_such'" in capsys.readouterr().err
     assert cli.main([*args[:6], "--keyframe", "walk"]) == 2
     assert "no keyframe of that name" in capsys.readouterr().err
+
+
+def test_cli_deform_options_turn_on_the_ground_that_remembers(tmp_path, capsys):
+    import json
+
+    out = tmp_path / "w"
+    args = ["run", "wheel_rig", "--duration", "0.2", "--out", str(out), "--no-plots",
+            "--triangles", "300", "--deform-cell", "0.01", "--repose", "25"]  # fmt: skip
+    assert cli.main(args) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "completed" and meta["field"]["deforms"] is True
+    assert meta["options"]["deform_cell"] == 0.01 and meta["options"]["repose"] == 25.0
+    assert cli.main([*args[:7], "--deform-cell", "0"]) == 0
+    assert json.loads((out / "run.json").read_text())["field"]["deforms"] is False
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        cli.main([*args[:7], "--deform-cell", "-1"])
+    assert "expected a finite number >= 0, got -1" in capsys.readouterr().err

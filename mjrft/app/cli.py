@@ -171,7 +171,7 @@ RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
 #: Seconds of warm-up after which `mjrft run` says it is compiling (a cache load takes ~1 s).
 WARM_UP_NOTICE_S = 2.0
-#: Cold-start compilation time to announce: 148 s measured on the 2-core Zen 5 VM
+#: Cold-start compilation time to announce: 148 s measured on the 2-core Xeon VM
 #: (benchmarks/RESULTS.md, "Kernel"; `mjrft demo` 152 s in all).
 COLD_START_S = "2-3 minutes"
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
@@ -215,18 +215,11 @@ def _on_sigterm(signum, frame) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from mjrft.app import metadata, simulate
-    from mjrft.field.granular_field import GranularField
 
     xml = simulate.resolve_model(args.model)
     out = _check_outputs(args)
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
-    model = simulate.load_model(xml)
-    simulate.configure(model, args.timestep, args.integrator)
-    keyframe = _keyframe(model, args.keyframe)
-    fld = GranularField(
-        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
-        low_speed=args.low_speed, stick_reach=args.stick_reach,
-    )  # fmt: skip
+    model, keyframe, fld = _scene(args, xml)
     columns = simulate.new_recording(model, fld).columns
     run = _RunInfo(xml, model, fld, keyframe)
     metadata.write(out / RUN_JSON, run.record(args, "running"))
@@ -310,6 +303,7 @@ class _RunInfo:
                 "triangles": f.n_elements,
                 "bodies": [be.name for be in f.bodies],
                 "surface_z_m": f.surface_z,
+                "deforms": f.deforms,
             },
             "versions": metadata.versions(),
             "machine": metadata.machine(),
@@ -447,6 +441,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
     if not v > 0 or v == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a finite positive number, got {text}")
+    return v
+
+
+def _nonnegative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
+    if not v >= 0 or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
     return v
 
 
@@ -756,7 +760,6 @@ def _add_view_model(sub) -> None:
 
 def _view(args: argparse.Namespace) -> int:
     from mjrft.app import mujoco_viewer, simulate
-    from mjrft.field.granular_field import GranularField
 
     if not mujoco_viewer.has_display():
         raise ValueError(
@@ -764,18 +767,28 @@ def _view(args: argparse.Namespace) -> int:
             f"mjrft run {args.model} --duration 10 --out run --rrd run/run.rrd"
         )
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
-    model = simulate.load_model(args.model)
-    simulate.configure(model, args.timestep, args.integrator)
-    keyframe = _keyframe(model, args.keyframe)
-    fld = GranularField(
-        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
-        low_speed=args.low_speed, stick_reach=args.stick_reach,
-    )  # fmt: skip
+    model, keyframe, fld = _scene(args, args.model)
     data = simulate.reset_data(model, keyframe)
     _warm_up()
     mujoco_viewer.launch(model, fld, data=data, ctrl=ctrl, force_scale=args.force_scale,
                   triangles=args.triangle_arrows, duration=args.duration)  # fmt: skip
     return 0
+
+
+def _scene(args: argparse.Namespace, xml):
+    """(model, keyframe, field) of ``mjrft run`` and ``mjrft view``, with the scene options."""
+    from mjrft.app import simulate
+    from mjrft.field.granular_field import GranularField
+
+    model = simulate.load_model(xml, deform_cell=args.deform_cell, repose=args.repose)
+    simulate.configure(model, args.timestep, args.integrator)
+    keyframe = _keyframe(model, args.keyframe)
+    fld = GranularField(
+        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
+        low_speed=args.low_speed, stick_reach=args.stick_reach, deform_cell=args.deform_cell,
+        repose=args.repose,
+    )  # fmt: skip
+    return model, keyframe, fld
 
 
 def _add_scene_options(r) -> None:
@@ -841,6 +854,22 @@ def _add_scene_options(r) -> None:
         help="low-speed treatment (docs/stability.md): stick holds free bodies and bodies in "
         "mechanisms at rest like static friction, free only free bodies, off is the pure model "
         "(default: the model's mjrft:low_speed, else stick)",
+    )
+    r.add_argument(
+        "--deform-cell",
+        type=_nonnegative_float,
+        default=None,
+        metavar="CELL",
+        help="ground that deforms and remembers, on a grid of CELL m over mjrft:region "
+        "(docs/terrain.md); 0 turns it off (default: the model's mjrft:deform_cell, else off)",
+    )
+    r.add_argument(
+        "--repose",
+        type=_positive_float,
+        default=None,
+        metavar="DEG",
+        help="the deforming ground's angle of repose in degrees (default: the model's "
+        "mjrft:repose, else the material preset's)",
     )
     r.add_argument(
         "--stick-reach",

@@ -278,13 +278,19 @@ def _settle_pair(soil, oh, oc, i, hi, fi, j, hj, fj, lim):
 
 
 @numba.njit(**_JIT)
-def relax(prm, grid, soil, floor, box, stats):
-    """Relax the surface inside box (4,) (grown while material reaches its border) until no
-    pair of free neighbouring vertices is steeper than the angle of repose, or MAX_SWEEPS.
+def relax(prm, grid, soil, floor, box, seen, stats):
+    """Relax the surface inside box (4,) until no pair of free neighbouring vertices is steeper
+    than the angle of repose, or MAX_SWEEPS; returns True if it converged.
 
     Sweeps alternate direction (symmetric Gauss-Seidel), so an excess travels down a slope in
-    either direction within one sweep. A vertex an intruder presses on neither gives nor takes
-    (``_settle_pair`` for the gap under a hovering one). Returns True if it converged."""
+    either direction within one sweep. Each sweep after the first covers only the vertices that
+    moved in the one before and their neighbours: a pair of which neither vertex moved was in
+    repose when visited and still is, so the moves are those of sweeping the whole box (but for
+    exchanges under SLOPE_SLACK, which do not count as moves), at the cost of the slopes still
+    settling (measured on the wheel rig: 107 against 1250 us per step). On return box holds the
+    next sweep's box (the slopes left unrelaxed) and seen (4,) has grown over every box swept.
+    A vertex an intruder presses on neither gives nor takes (``_settle_pair`` for the gap under
+    a hovering one)."""
     ncol, nrow = int(prm[NCOL]), int(prm[NROW])
     oh, oc, _ = _offsets(prm)
     t = prm[TAN_REPOSE]
@@ -294,8 +300,8 @@ def relax(prm, grid, soil, floor, box, stats):
     for sweep in range(MAX_SWEEPS):
         if r0 > r1 or c0 > c1:
             return True
-        moved = False
-        grow = False
+        union(seen, r0, r1, c0, c1)
+        mr0, mr1, mc0, mc1 = nrow, -1, ncol, -1  # the vertices this sweep moved
         back = sweep % 2 == 1
         for rs in range(r0, r1 + 1):
             r = r0 + r1 - rs if back else rs
@@ -320,14 +326,12 @@ def relax(prm, grid, soil, floor, box, stats):
                     if q <= SLOPE_SLACK:  # in repose, or capped by an intruder: settled
                         continue
                     hi = grid[r, c] + soil[oh + i]
-                    moved = True
-                    # Material reached the box's border: the box grows by one vertex.
-                    grow |= r <= r0 + 1 or r >= r1 - 1 or c <= c0 + 1 or c >= c1 - 1
-        if not moved:
+                    mr0, mr1 = min(mr0, r), max(mr1, rr)
+                    mc0, mc1 = min(mc0, c, cc), max(mc1, c, cc)
+        if mr1 < 0:
             return True
-        if grow:
-            r0, r1 = max(1, r0 - 1), min(nrow - 2, r1 + 1)
-            c0, c1 = max(1, c0 - 1), min(ncol - 2, c1 + 1)
+        r0, r1 = max(1, mr0 - 1), min(nrow - 2, mr1 + 1)
+        c0, c1 = max(1, mc0 - 1), min(ncol - 2, mc1 + 1)
         box[0], box[1], box[2], box[3] = r0, r1, c0, c1
     stats[3] += 1
     return False

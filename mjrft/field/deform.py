@@ -98,11 +98,10 @@ def update(m_rec, e_rec):
         block[surface.SOIL_TIME] = d.time[0]
         return bad
     box[0], box[1], box[2], box[3] = box[0] - 1, box[1] + 1, box[2] - 1, box[3] + 1
-    touched = box.copy()
-    converged = soil.relax(prm, grid, block, s.soil_floor, box, s.soil_stats)
+    seen = box.copy()
+    converged = soil.relax(prm, grid, block, s.soil_floor, box, seen, s.soil_stats)
     _head_store(block, surface.SOIL_PENDING, box, not converged)
-    soil.union(box, touched[0], touched[1], touched[2], touched[3])
-    soil.finish(prm, grid, block, s.soil_floor, s.soil_owner, box, d.time[0])
+    soil.finish(prm, grid, block, s.soil_floor, s.soil_owner, seen, d.time[0])
     return bad
 
 
