@@ -41,7 +41,7 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
-from mjrft import Material
+from mjrft import Material, load_model
 
 from .base import (
     forward_kinematics,
@@ -59,6 +59,10 @@ MAX_FREQUENCY = 4.0  # Hz
 MAX_PHASE_RATE = 2 * math.pi  # rad/s: fastest re-phasing of tripod B (extra hip speed)
 HIP_QPOS = slice(7, 13)  # hip angles in qpos (after the free joint)
 HIP_QVEL = slice(6, 12)
+#: The medium's region when the ground deforms [m, world]: (xmin, ymin, zmin, xmax, ymax, zmax),
+#: the walk's +x lane for 3.3 m (20 s at the 1 Hz gait's 15 cm/s, the default episode), 40 cm
+#: wide (the robot spans 23 cm), 15 cm deep (the legs reach 9 cm below the hips).
+DEFORM_REGION = (-0.3, -0.2, -0.15, 3.3, 0.2, 0.1)
 
 
 def _wrap(angle: np.ndarray) -> np.ndarray:
@@ -140,6 +144,8 @@ def make(
     material: Material | str | None = None,
     n_triangles: int | None = None,
     slope: tuple[float, float] | None = None,
+    deform_cell: float | None = None,
+    repose: float | None = None,
 ):
     """The ``hexapod_sand`` environment.
 
@@ -152,14 +158,20 @@ def make(
       slope: (slope, downhill azimuth from +x) [degrees]: walk on a tilted plane through the
         origin (``mjrft:surface_slope``; azimuth 0: the gait's +x is downhill, 180: uphill);
         default the flat surface.
+      deform_cell: walk on ground that deforms and remembers (footprints, ruts; docs/terrain.md)
+        on a grid of this cell [m] over ``DEFORM_REGION`` (on the flat surface only); each
+        episode starts from pristine ground. repose: its angle of repose [deg] (default the
+        material preset's).
     """
     path = str(models_dir() / "hexapod_sand.xml")
-    if slope is None:
-        model = mujoco.MjModel.from_xml_path(path)
-    else:
-        spec = mujoco.MjSpec.from_file(path)
+    spec = mujoco.MjSpec.from_file(path)
+    if slope is not None:
         spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
-        model = spec.compile()
+    if deform_cell:
+        if slope is not None:
+            raise ValueError("deform_cell: the deforming ground starts flat; pass slope=None")
+        spec.add_numeric(name="mjrft:region", data=list(DEFORM_REGION))
+    model = load_model(spec, deform_cell=deform_cell, repose=repose)
     physics = GranularPhysics.from_mjmodel(model, material=material, n_triangles=n_triangles)
     task = HexapodWalk(random=resolve_random(random, seed), control_timestep=control_timestep)
     return make_environment(physics, task, time_limit=time_limit, control_timestep=control_timestep)

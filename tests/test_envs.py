@@ -433,6 +433,33 @@ def test_hexapod_on_a_slope_starts_on_the_surface_and_walks_faster_downhill():
     assert speeds[0.0] > speeds[180.0], speeds
 
 
+def test_hexapod_on_deforming_ground_leaves_footprints_and_conserves_volume():
+    """make(deform_cell=...) walks the hexapod on ground that remembers: 10 s of the gait cut
+    footprints and raise rims, the volume stays (1e-9 of what was cut: only rounding moves it),
+    and every episode starts from pristine ground."""
+    env = hexapod_sand.make(seed=0, time_limit=float("inf"), deform_cell=0.005)
+    try:
+        env.reset()
+        physics = env.physics
+        soil = physics.field.soil(physics.data.ptr)
+        assert not np.any(soil.height)
+        action = np.array([1.0, math.pi])
+        for _ in range(round(10.0 / env.control_timestep())):
+            env.step(action)
+        soil = physics.field.soil(physics.data.ptr)
+        cut = soil.counters["excavated"]
+        assert cut > 1e-4  # m^3
+        assert abs(soil.volume()) <= 1e-9 * cut
+        assert soil.height.min() < -0.01 and soil.height.max() > 0.003  # m
+        assert physics.data.qpos[0] > 1.0  # it walked (1.5 m measured)
+        env.reset()
+        assert not np.any(physics.field.soil(physics.data.ptr).height)
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="slope=None"):
+        hexapod_sand.make(deform_cell=0.005, slope=(10.0, 0.0))
+
+
 # --- gymnasium ----------------------------------------------------------------------------------
 
 

@@ -56,18 +56,11 @@ def run(
     deform_cell: the deforming ground's cell [m] (0: the pristine surface at every step).
     Returns one ``Pass`` per pass.
     """
-    if not -1.0 < slip < 1.0:
-        raise ValueError(f"slip {slip!r}: must lie in (-1, 1) (the carriage must move forward)")
     if passes < 1 or length <= 0.0:
         raise ValueError(f"passes {passes!r} and length {length!r} [m] must be positive")
-    model = load_model(str(model_path), deform_cell=deform_cell) if deform_cell > 0 else (
-        mujoco.MjModel.from_xml_path(str(model_path)))  # fmt: skip
-    field = GranularField(model, n_triangles=n_triangles)
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key("start").id)
-    v = (1.0 - slip) * omega * RADIUS
-    data.ctrl[:] = (v, omega)
-    duration = length / v
+    model, field, data = rig(slip, deform_cell=deform_cell, omega=omega,
+                             n_triangles=n_triangles, model_path=model_path)  # fmt: skip
+    duration = length / data.ctrl[0]
     out = []
     with field.installed():
         for _ in range(passes):
@@ -77,6 +70,26 @@ def run(
             mujoco.mj_forward(model, data)
             out.append(_one_pass(model, data, start, duration))
     return out
+
+
+def rig(
+    slip: float,
+    *,
+    deform_cell: float = 0.0,
+    omega: float = OMEGA,
+    n_triangles: int | None = None,
+    model_path: Path = MODEL,
+) -> tuple[mujoco.MjModel, GranularField, mujoco.MjData]:
+    """The rig's model, field and data at its start, its servos set to ``slip`` and ``omega``
+    [rad/s] (deform_cell [m]: the deforming ground's cell, 0 for the pristine surface)."""
+    if not -1.0 < slip < 1.0:
+        raise ValueError(f"slip {slip!r}: must lie in (-1, 1) (the carriage must move forward)")
+    model = load_model(str(model_path), deform_cell=deform_cell)
+    field = GranularField(model, n_triangles=n_triangles)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("start").id)
+    data.ctrl[:] = ((1.0 - slip) * omega * RADIUS, omega)
+    return model, field, data
 
 
 def _one_pass(model, data, start: float, duration: float) -> Pass:
