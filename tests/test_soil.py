@@ -169,6 +169,71 @@ def test_a_dragged_blade_pushes_a_pile_ahead_and_leaves_a_trench_behind():
     assert abs(soil.volume()) <= VOLUME_RTOL * soil.counters["excavated"]
 
 
+def test_a_recording_shows_the_ground_as_it_deforms(tmp_path):
+    """The rerun recording's world/surface mesh follows the deforming ground (decimated, every
+    viz.GROUND_EVERY_FRAMES frames): the blade's trench and pile as they grow."""
+    from mjrft.app import viz
+
+    m, f, d = load(BLADE)
+    path = tmp_path / "blade.rrd"
+    shown = {}
+    with viz.Recorder(m, f, path, every=1) as recorder, f.installed():
+        d.ctrl[0] = 0.1  # [m/s]
+        mujoco.mj_forward(m, d)
+        for step in range(3 * viz.GROUND_EVERY_FRAMES):
+            recorder.log_state(step, d.time, d)
+            if step % viz.GROUND_EVERY_FRAMES == 0:
+                shown[step] = f.soil(d).height.ravel()
+            for _ in range(10):
+                mujoco.mj_step(m, d)
+    rows = [r for r in viz.read_entity(path, "world/surface") if "Mesh3D:vertex_positions" in r]
+    assert [r["step"] for r in rows] == sorted(shown)
+    for r in rows:
+        vertices = np.asarray(r["Mesh3D:vertex_positions"], float).reshape(-1, 3)
+        # This grid is small: every vertex is drawn, at its height (float32 in the file).
+        np.testing.assert_allclose(vertices[:, 2], shown[r["step"]], atol=1e-7)
+    assert np.ptp(shown[20] - shown[0]) > 0.005  # the trench and the pile grew in between
+
+
+HFIELD_FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
+<asset><hfield name="sand" nrow="25" ncol="25" size="0.06 0.06 0.02 0.01"
+  elevation="{elevation}"/></asset>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<text name="mjrft:surface_hfield" data="sand"/>
+<numeric name="mjrft:region" data="-0.05 -0.05 -0.1 0.05 0.05 0.05"/>
+<numeric name="mjrft:deform_cell" data="0.0025"/>
+<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="300"/></tuple></custom>
+<worldbody><geom type="hfield" hfield="sand" pos="0 0 -0.02" contype="0" conaffinity="0"/>
+<body name="foot" pos="0 0 0.005"><joint name="z" type="slide" axis="0 0 1"/>
+<geom name="foot" type="box" size="0.02 0.02 0.005" mass="1"/></body></worldbody>
+<actuator><position joint="z" kp="1e5" kv="2000"/></actuator></mujoco>"""
+
+
+def test_the_viewer_draws_the_ground_in_its_hfield():
+    """mujoco_viewer.draw_ground writes the deforming ground into the hfield that gave its
+    initial surface (the viewer then re-uploads it): lower under a pressed foot, as the soil
+    says, and unchanged outside the ground's grid."""
+    from mjrft.app import mujoco_viewer
+
+    ramp = np.tile(np.linspace(0.0, 1.0, 25), (25, 1))  # MuJoCo keeps [0, 1] data as given
+    m, f, d = load(HFIELD_FOOT.format(elevation=" ".join(f"{v:.6f}" for v in ramp.ravel())))
+    hfield = mujoco_viewer.ground_hfield(m, f)
+    assert hfield == m.hfield("sand").id
+    initial = m.hfield_data.reshape(25, 25).copy()
+    drive(m, f, d, np.linspace(0.0, -0.015, 30), steps=5)  # the foot 5 mm into the ground
+    mujoco_viewer.draw_ground(m, d, f, hfield)
+    samples = m.hfield_data.reshape(25, 25)
+    x = np.linspace(-0.06, 0.06, 25)
+    inside = np.abs(x) <= 0.05
+    expect = (f.soil(d).height_at(*np.meshgrid(x[inside], x[inside])) + 0.02) / 0.02
+    expect = np.clip(expect, 0.0, 1.0)  # the rim can rise above the hfield's top: drawn there
+    np.testing.assert_allclose(samples[np.ix_(inside, inside)], expect, atol=1e-6)  # float32
+    assert samples[12, 12] < initial[12, 12] - 0.2  # 4 mm of the 5 mm cut, in units of 2 cm
+    outside = ~np.outer(inside, inside)
+    assert np.array_equal(samples[outside], initial[outside])
+    assert mujoco_viewer.ground_hfield(m, GranularField(m, deform_cell=0.0)) == -1
+
+
 def test_the_ground_travels_with_the_mjdata_state():
     """Copies carry their own ground, mj_getState/mj_setState (mjSTATE_INTEGRATION) restore
     it, mj_resetData and Soil.reset restore the initial surface, set_height writes it."""

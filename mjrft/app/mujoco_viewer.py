@@ -3,7 +3,8 @@
 ``mjrft view MODEL`` runs ``launch``; in a loop of your own, install the field, step, and
 call ``draw_forces(viewer.user_scn, ...)`` before ``viewer.sync()``
 (docs/field.md, "In MuJoCo's viewer"). The arrows are scene decorations (``mjvScene`` user
-geoms): they are drawn, never simulated.
+geoms): they are drawn, never simulated. A deforming ground whose initial surface is an hfield
+(``mjrft:surface_hfield``) is drawn by that hfield, rewritten in place (``draw_ground``).
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ ARROW_WIDTH_MIN, ARROW_WIDTH_MAX = 0.0008, 0.006
 DEFAULT_MAX_TRIANGLE_ARROWS = 200
 #: Forces below this [N] draw no arrow (round-off of a body just at the surface).
 MIN_ARROW_FORCE = 1e-9
+#: The viewer redraws a deforming ground's hfield every this many simulated seconds.
+GROUND_PERIOD_S = 0.05
 
 
 def _add_arrow(scn: mujoco.MjvScene, tail: np.ndarray, head: np.ndarray, rgba) -> bool:
@@ -92,6 +95,39 @@ def draw_forces(
     return drawn
 
 
+def ground_hfield(model: mujoco.MjModel, fld: GranularField) -> int:
+    """The hfield that draws fld's deforming ground: the one ``mjrft:surface_hfield`` names;
+    -1 if the ground does not deform or has no hfield."""
+    t = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, "mjrft:surface_hfield")
+    if not fld.deforms or t < 0:
+        return -1
+    from mjrft.field.scene import _text  # the MJCF text as the scene reads it
+
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_HFIELD, _text(model, t))
+
+
+def draw_ground(
+    model: mujoco.MjModel, data: mujoco.MjData, fld: GranularField, hfield: int
+) -> None:
+    """Write data's deforming ground into hfield's samples (``model.hfield_data``, in place,
+    clipped to the hfield's elevation range) where they lie over the ground's grid; call the
+    viewer's ``update_hfield(hfield)`` after. The field keeps its own copy of the initial
+    surface, but a field built later from this model would start from the rewritten one."""
+    g = int(np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD)
+                           & (model.geom_dataid == hfield))[0])  # fmt: skip
+    rx, ry, top, _ = (float(v) for v in model.hfield_size[hfield])
+    nrow, ncol = int(model.hfield_nrow[hfield]), int(model.hfield_ncol[hfield])
+    x0, y0, z0 = (float(v) for v in model.geom_pos[g])
+    x, y = np.meshgrid(np.linspace(x0 - rx, x0 + rx, ncol), np.linspace(y0 - ry, y0 + ry, nrow))
+    soil = fld.soil(data)
+    inside = ((x >= soil.x[0]) & (x <= soil.x[-1]) & (y >= soil.y[0])
+              & (y <= soil.y[-1])).ravel()  # fmt: skip
+    adr = int(model.hfield_adr[hfield])
+    samples = model.hfield_data[adr : adr + nrow * ncol]
+    h = soil.height_at(x.ravel()[inside], y.ravel()[inside])
+    samples[inside] = np.clip((h - z0) / top, 0.0, 1.0)
+
+
 def launch(
     model: mujoco.MjModel,
     fld: GranularField,
@@ -119,17 +155,28 @@ def launch(
         )
     data = data if data is not None else mujoco.MjData(model)
     apply_ctrl = checked_controller(model, ctrl)
-    with fld.installed(), mujoco.viewer.launch_passive(model, data) as viewer:
-        wall0, sim0 = time.perf_counter(), data.time
-        while viewer.is_running() and (duration is None or data.time - sim0 < duration):
-            with viewer.lock():
-                if apply_ctrl is not None:
-                    apply_ctrl(data)
-                mujoco.mj_step(model, data)
-                draw_forces(viewer.user_scn, model, data, fld, force_scale=force_scale,
-                            triangles=triangles)  # fmt: skip
-            viewer.sync()
-            ahead = (data.time - sim0) - (time.perf_counter() - wall0)
-            if ahead > 0:
-                time.sleep(ahead)  # real time: never faster than the simulation clock
+    hfield = ground_hfield(model, fld)
+    initial = model.hfield_data.copy()
+    try:
+        with fld.installed(), mujoco.viewer.launch_passive(model, data) as viewer:
+            wall0, sim0 = time.perf_counter(), data.time
+            drawn = -math.inf
+            while viewer.is_running() and (duration is None or data.time - sim0 < duration):
+                with viewer.lock():
+                    if apply_ctrl is not None:
+                        apply_ctrl(data)
+                    mujoco.mj_step(model, data)
+                    draw_forces(viewer.user_scn, model, data, fld, force_scale=force_scale,
+                                triangles=triangles)  # fmt: skip
+                    if hfield >= 0 and data.time - drawn >= GROUND_PERIOD_S:
+                        draw_ground(model, data, fld, hfield)
+                        drawn = data.time
+                if drawn == data.time:
+                    viewer.update_hfield(hfield)
+                viewer.sync()
+                ahead = (data.time - sim0) - (time.perf_counter() - wall0)
+                if ahead > 0:
+                    time.sleep(ahead)  # real time: never faster than the simulation clock
+    finally:
+        model.hfield_data[:] = initial  # the model's own initial surface again
     return data

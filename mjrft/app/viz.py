@@ -97,6 +97,10 @@ REGION_RGBA = (150, 120, 70, 255)
 SURFACE_EXTENT_FACTOR = 0.5
 #: Samples per side of the drawn surface when it is not flat (a tilted plane or a height field).
 SURFACE_SAMPLES = 65
+#: Deforming ground: its heights are logged every this many frames (0.1 s at the default frame
+#: period), on at most this many vertices per side (every k-th row and column of its grid).
+GROUND_EVERY_FRAMES = 10
+GROUND_MAX_SIDE = 200
 #: Default camera: distance from the look target in diagonals of the intruders' bounding box,
 #: and the direction from the target to the eye (world frame): from the front (-y, the pitch
 #: plane of the rigs faces it), a little to the right and a little below the target, so that the
@@ -227,6 +231,12 @@ class _Frame:
     # per intruder whose appearance is logged at this frame: (k in fld.bodies, vertex colours
     # (3 n_tri,), element_index, origins, vectors, arrow scale [m/N] or None without arrows)
     looks: tuple[tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float | None], ...]
+    ground: np.ndarray | None  # (vertices, 3) of the deforming ground [m, world], or None
+
+
+def _stride(n: int) -> np.ndarray:
+    """At most GROUND_MAX_SIDE indices of 0..n-1, evenly spread, the first and last included."""
+    return np.unique(np.rint(np.linspace(0, n - 1, min(n, GROUND_MAX_SIDE))).astype(np.int64))
 
 
 class Recorder:
@@ -298,6 +308,13 @@ class Recorder:
         # Per intruder, what its entities show now: None (nothing logged yet), False (grey, no
         # arrows) or True (stress colours and arrows).
         self._shown: list[bool | None] = [None] * len(fld.bodies)
+        # The deforming ground's drawn vertices: every k-th row and column of its grid.
+        self._ground_rows = self._ground_cols = None
+        if fld.deforms:
+            soil0 = fld.soil(mujoco.MjData(model))
+            self._ground_rows = _stride(len(soil0.y))
+            self._ground_cols = _stride(len(soil0.x))
+            self._ground_xy = np.meshgrid(soil0.x[self._ground_cols], soil0.y[self._ground_rows])
         self._buffer: list[_Frame] = []
         self._sent = 0
         self._blueprint_sent = False
@@ -462,31 +479,54 @@ class Recorder:
 
     def _surface_mesh(self) -> tuple[np.ndarray, np.ndarray]:
         """Vertices (k, 3) [m, world] and triangles (t, 3) of the drawn free surface: two
-        triangles when flat, else a SURFACE_SAMPLES x SURFACE_SAMPLES grid of its heights."""
-        (x0, y0), (x1, y1) = self._surface_box()
-        n = 2 if self.fld.surface.kind == surface.FLAT else SURFACE_SAMPLES
-        x, y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
+        triangles when flat, else a SURFACE_SAMPLES x SURFACE_SAMPLES grid of its heights (the
+        deforming ground: its decimated grid, initial heights)."""
+        if self._ground_rows is not None:
+            x, y = self._ground_xy
+        else:
+            (x0, y0), (x1, y1) = self._surface_box()
+            n = 2 if self.fld.surface.kind == surface.FLAT else SURFACE_SAMPLES
+            x, y = np.meshgrid(np.linspace(x0, x1, n), np.linspace(y0, y1, n))
         vertices = np.stack([x, y, self.fld.surface.height(x, y)], axis=-1).reshape(-1, 3)
-        r, c = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
-        a = (r * n + c).ravel()
-        triangles = np.concatenate([np.stack([a, a + 1, a + n + 1], 1),
-                                    np.stack([a, a + n + 1, a + n], 1)])  # fmt: skip
+        nr, nc = x.shape
+        r, c = np.meshgrid(np.arange(nr - 1), np.arange(nc - 1), indexing="ij")
+        a = (r * nc + c).ravel()
+        triangles = np.concatenate([np.stack([a, a + 1, a + nc + 1], 1),
+                                    np.stack([a, a + nc + 1, a + nc], 1)])  # fmt: skip
         return vertices, triangles
+
+    def _ground(self, data: mujoco.MjData) -> np.ndarray | None:
+        """The deforming ground's drawn vertices (k, 3) [m, world] if this frame shows it."""
+        if self._ground_rows is None or self.frames % GROUND_EVERY_FRAMES:
+            return None
+        h = self.fld.soil(data).height[np.ix_(self._ground_rows, self._ground_cols)]
+        return np.stack([*self._ground_xy, h], axis=-1).reshape(-1, 3)
 
     def _log_static(self) -> None:
         rec, fld = self.rec, self.fld
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         vertices, triangles = self._surface_mesh()
-        rec.log(
-            "world/surface",
-            rr.Mesh3D(
-                vertex_positions=vertices,
-                triangle_indices=triangles,
-                albedo_factor=SURFACE_RGBA,
-                face_rendering=rr.components.MeshFaceRendering.DoubleSided,
-            ),
-            static=True,
-        )
+        if self._ground_rows is None:
+            rec.log(
+                "world/surface",
+                rr.Mesh3D(
+                    vertex_positions=vertices,
+                    triangle_indices=triangles,
+                    albedo_factor=SURFACE_RGBA,
+                    face_rendering=rr.components.MeshFaceRendering.DoubleSided,
+                ),
+                static=True,
+            )
+        else:  # the heights change: only the rest is static (static data hides later frames)
+            rec.log(
+                "world/surface",
+                rr.Mesh3D.from_fields(
+                    triangle_indices=triangles,
+                    albedo_factor=SURFACE_RGBA,
+                    face_rendering=rr.components.MeshFaceRendering.DoubleSided,
+                ),
+                static=True,
+            )
         if fld.region is not None:
             lo, hi = fld.region
             rec.log(
@@ -619,7 +659,8 @@ class Recorder:
             colors = np.repeat(stress_colors(stress, self.stress_max), 3)
             looks.append((k, colors, index, origins, vectors, scale))
         scalars.append(np.asarray(data.sensordata, dtype=np.float64))
-        frame = _Frame(int(step), float(time), xpos, xmat, np.concatenate(scalars), tuple(looks))
+        frame = _Frame(int(step), float(time), xpos, xmat, np.concatenate(scalars), tuple(looks),
+                       self._ground(data))  # fmt: skip
         if not self._blueprint_sent:
             self._send_blueprint(data.xpos, data.xmat)
         self._buffer.append(frame)  # the frame is complete: from here on it is in the file
@@ -658,10 +699,12 @@ class Recorder:
                     path, indexes=indexes, columns=rr.Scalars.columns(scalars=values[:, k])
                 )
             for f in frames:
-                if not f.looks:
+                if not f.looks and f.ground is None:
                     continue
                 rec.set_time("step", sequence=f.step)
                 rec.set_time("sim_time", duration=f.time)
+                if f.ground is not None:
+                    rec.log("world/surface", rr.Mesh3D.from_fields(vertex_positions=f.ground))
                 for k, colors, index, origins, vectors, scale in f.looks:
                     name = self._names[self._intruders[k]]
                     rec.log(
