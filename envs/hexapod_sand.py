@@ -146,6 +146,7 @@ def make(
     slope: tuple[float, float] | None = None,
     deform_cell: float | None = None,
     repose: float | None = None,
+    deform_every: int | None = None,
 ):
     """The ``hexapod_sand`` environment.
 
@@ -161,7 +162,7 @@ def make(
       deform_cell: walk on ground that deforms and remembers (footprints, ruts; docs/terrain.md)
         on a grid of this cell [m] over ``DEFORM_REGION`` (on the flat surface only); each
         episode starts from pristine ground. repose: its angle of repose [deg] (default the
-        material preset's).
+        material preset's). deform_every: steps between its updates (default 1).
     """
     path = str(models_dir() / "hexapod_sand.xml")
     spec = mujoco.MjSpec.from_file(path)
@@ -171,6 +172,8 @@ def make(
         if slope is not None:
             raise ValueError("deform_cell: the deforming ground starts flat; pass slope=None")
         spec.add_numeric(name="mjrft:region", data=list(DEFORM_REGION))
+        if deform_every is not None:
+            spec.add_numeric(name="mjrft:deform_every", data=[float(deform_every)])
     model = load_model(spec, deform_cell=deform_cell, repose=repose)
     physics = GranularPhysics.from_mjmodel(model, material=material, n_triangles=n_triangles)
     task = HexapodWalk(random=resolve_random(random, seed), control_timestep=control_timestep)

@@ -786,7 +786,7 @@ def _scene(args: argparse.Namespace, xml):
     fld = GranularField(
         model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
         low_speed=args.low_speed, stick_reach=args.stick_reach, deform_cell=args.deform_cell,
-        repose=args.repose,
+        repose=args.repose, deform_every=args.deform_every,
     )  # fmt: skip
     return model, keyframe, fld
 
@@ -870,6 +870,14 @@ def _add_scene_options(r) -> None:
         metavar="DEG",
         help="the deforming ground's angle of repose in degrees (default: the model's "
         "mjrft:repose, else the material preset's)",
+    )
+    r.add_argument(
+        "--deform-every",
+        type=_positive_int,
+        default=None,
+        metavar="K",
+        help="update the deforming ground every K steps: K times cheaper, the ground lagging the "
+        "intruders by up to K steps (default: the model's mjrft:deform_every, else 1)",
     )
     r.add_argument(
         "--stick-reach",

@@ -396,10 +396,11 @@ def grid_shape(region: np.ndarray, cell: float) -> tuple[int, int]:
 
 
 def grid_over(
-    initial: surface.Surface, region: np.ndarray, cell: float, repose_deg: float
+    initial: surface.Surface, region: np.ndarray, cell: float, repose_deg: float, every: int = 1
 ) -> surface.Surface:
     """A SOIL surface with vertices every `cell` [m] over the region's (2, 3) horizontal extent,
-    starting as `initial` (sampled at the vertices) with angle of repose repose_deg [deg]."""
+    starting as `initial` (sampled at the vertices) with angle of repose repose_deg [deg],
+    following the intruders every `every` steps."""
     lo = region[0, :2]
     nrow, ncol = grid_shape(region, cell)
     x = lo[0] + cell * np.arange(ncol)
@@ -409,6 +410,7 @@ def grid_over(
     prm = out.prm.copy()
     prm[surface.KIND] = surface.SOIL
     prm[TAN_REPOSE] = math.tan(math.radians(repose_deg))
+    prm[surface.EVERY] = every
     return surface.Surface(prm, out.grid)
 
 

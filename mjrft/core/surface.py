@@ -39,9 +39,10 @@ import numba
 import numpy as np
 
 FLAT, PLANE, GRID, SOIL = 0, 1, 2, 3
-#: Slots of ``prm``; TAN_REPOSE (SOIL only): tangent of the medium's angle of repose.
-KIND, Z0, GX, GY, X0, Y0, DX, DY, NCOL, NROW, ZMAX, TAN_REPOSE = range(12)
-PRM_SIZE = 12
+#: Slots of ``prm``; SOIL only: TAN_REPOSE, the tangent of the medium's angle of repose, and
+#: EVERY, the steps between updates of the ground (1: every step).
+KIND, Z0, GX, GY, X0, Y0, DX, DY, NCOL, NROW, ZMAX, TAN_REPOSE, EVERY = range(13)
+PRM_SIZE = 13
 #: Head of a soil block: how far the highest point rose above prm[ZMAX] [m]; 1 once the grid
 #: followed a configuration; the time of that configuration [s]; the vertex box (r0, r1, c0, c1)
 #: still relaxing; the box of the intruders' last footprints. Then the offsets of h and of c

@@ -21,9 +21,17 @@ _BIG = float(np.iinfo(np.int32).max)
 
 @numba.njit(inline="always", **_JIT)
 def due(m, d):
-    """True if the ground has not yet followed the configuration at this time."""
+    """True if the ground has not yet followed the configuration at this time: at every new
+    time, or with mjrft:deform_every = k > 1 once k steps have passed since it last did (or
+    the time went back: a reset or a restored state)."""
     block = d.userdata
-    return block[surface.SOIL_DONE] == 0.0 or block[surface.SOIL_TIME] != d.time[0]
+    t, last = d.time[0], block[surface.SOIL_TIME]
+    if block[surface.SOIL_DONE] == 0.0 or t < last:
+        return True
+    every = m.surface_prm[surface.EVERY]
+    if every <= 1.0:
+        return last != t
+    return t - last > (every - 0.5) * m.opt_timestep[0]
 
 
 @numba.njit(inline="always", **_JIT)

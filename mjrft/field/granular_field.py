@@ -77,6 +77,8 @@ class GranularField:
         of free bodies only, or none; overrides MJCF ``mjrft:low_speed``.
       stick_reach: the treatment's reach (default ``lowspeed.DEFAULT_REACH``); overrides MJCF
         ``mjrft:stick_reach``.
+      deform_cell [m], repose [deg], deform_every [steps]: the deforming ground (docs/terrain.md);
+        override MJCF ``mjrft:deform_cell`` (0: off), ``mjrft:repose``, ``mjrft:deform_every``.
     Raises:
       mjrft.field.SceneError (a ValueError) naming the geom or field at fault.
 
@@ -95,11 +97,13 @@ class GranularField:
         stick_reach: float | None = None,
         deform_cell: float | None = None,
         repose: float | None = None,
+        deform_every: int | None = None,
     ) -> None:
         self.model = model
         self.scene: Scene = scene_from_model(
             model, material, n_triangles=n_triangles, tolerance=tolerance,
             low_speed=low_speed, stick_reach=stick_reach, deform_cell=deform_cell, repose=repose,
+            deform_every=deform_every,
         )  # fmt: skip
         #: Tagged bodies (id order): their elements in the body frame.
         self.bodies: tuple[BodyElements, ...]

@@ -21,6 +21,9 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          <size nuserdata>, see load_model)
       <numeric name="mjrft:repose" data="30"/>           its angle of repose [deg] (default: the
                                                          material's, mjrft.core.soil.REPOSE_DEG)
+      <numeric name="mjrft:deform_every" data="1"/>      steps between its updates (default 1;
+                                                         k > 1 is k times cheaper, the ground
+                                                         lagging the intruders by up to k steps)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick, free or off
@@ -66,6 +69,7 @@ KEYS = {
         "max_triangles",
         "deform_cell",
         "repose",
+        "deform_every",
     ),
     "tuple": ("intruders",),
 }
@@ -268,11 +272,13 @@ def scene_from_model(
     stick_reach: float | None = None,
     deform_cell: float | None = None,
     repose: float | None = None,
+    deform_every: int | None = None,
 ) -> Scene:
     """Read and validate the scene; the keyword arguments override the MJCF's.
 
-    deform_cell [m] and repose [deg]: the deforming ground (``mjrft:deform_cell``,
-    ``mjrft:repose``); deform_cell = 0 turns off a deformation the MJCF asks for.
+    deform_cell [m], repose [deg] and deform_every [steps]: the deforming ground
+    (``mjrft:deform_cell``, ``mjrft:repose``, ``mjrft:deform_every``); deform_cell = 0 turns
+    off a deformation the MJCF asks for.
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
     ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick", "free" or "off") and
@@ -311,7 +317,8 @@ def scene_from_model(
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
     free_surface = _surface(model, custom, surface_z, region)
-    free_surface = _deforming(model, custom, free_surface, region, material, deform_cell, repose)
+    free_surface = _deforming(model, custom, free_surface, region, material,
+                              (deform_cell, repose, deform_every))  # fmt: skip
     default_tri, default_tol = _default_resolution(model, custom)
     if "intruders" not in custom:
         raise SceneError(
@@ -444,10 +451,12 @@ def load_model(
     return spec.compile()
 
 
-def _deforming(model, custom, initial: Surface, region, material, cell, repose) -> Surface:
-    """The deforming ground over the region if mjrft:deform_cell (or deform_cell) asks for it,
-    else the initial surface; checks the cell, the grid's size, the angle of repose and that
-    the MjModel has userdata for it."""
+def _deforming(model, custom, initial: Surface, region, material, options) -> Surface:
+    """The deforming ground over the region if mjrft:deform_cell (or the cell of options, the
+    overrides (cell [m], repose [deg], every [steps]), None where not given) asks for it, else
+    the initial surface; checks the cell, the grid's size, the angle of repose, the update
+    period and that the MjModel has userdata for it."""
+    cell, repose, every = options
     where = f"<numeric name='{PREFIX}deform_cell'>" if cell is None else "deform_cell"
     if cell is None:
         value = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
@@ -476,6 +485,14 @@ def _deforming(model, custom, initial: Surface, region, material, cell, repose) 
             f"angle of repose = {repose!r} deg ({PREFIX}repose): expected a value in (0, 90) "
             "degrees (dry sands and glass beads: 20-40)"
         )
+    if every is None:
+        value = _numeric_field(model, custom, "deform_every", (1,), "one whole number >= 1")
+        every = 1 if value is None else float(value[0])
+    if not (every == int(every) and every >= 1):
+        raise SceneError(
+            f"deform_every = {every!r} ({PREFIX}deform_every): expected a whole number of steps "
+            ">= 1 between updates of the ground (1: every step)"
+        )
     need = surface_mod.soil_block(nrow, ncol)
     if model.nuserdata < need:
         raise SceneError(
@@ -484,7 +501,7 @@ def _deforming(model, custom, initial: Surface, region, material, cell, repose) 
             f'<size nuserdata="{need}"/> to the MJCF (or load it with '
             "mjrft.load_model, which sizes it)"
         )
-    return soil.grid_over(initial, region, cell, repose)
+    return soil.grid_over(initial, region, cell, repose, int(every))
 
 
 def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:
