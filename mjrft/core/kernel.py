@@ -32,7 +32,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from mjrft.core import numba_cache, surface
+from mjrft.core import agarwal, numba_cache, surface
 from mjrft.core.law import (
     F1_GAIN,
     F1_NORM,
@@ -194,6 +194,16 @@ def _evaluate(buf, k, co, ay, zeta):
         buf[11, j] = g23 * az
 
 
+@numba.njit(inline="always", **_JIT)
+def _evaluate_model(buf, k, co, ay, zeta):
+    """The force model the coefficients are for: Treers et al. 2021 (18 combined Fourier
+    coefficients, ``_evaluate``) or Agarwal et al. 2023 (``agarwal.SIZE`` parameters)."""
+    if co.shape[0] == agarwal.SIZE:
+        agarwal.evaluate(buf, k, co)
+    else:
+        _evaluate(buf, k, co, ay, zeta)
+
+
 @numba.njit(**_JIT)
 def _scratch():
     """Per-chunk scratch: rows 0-11 for _evaluate, 12-14 for body_wrench's element positions."""
@@ -242,7 +252,8 @@ def _gather(buf, idx, k, i, nx, ny, nz, wx, wy, wz, depth, area, inside):
 def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
     """Fill out (n, 3) with element forces [N]; inputs world frame, n_hat unit. Returns #acting.
 
-    co: (18,) from combined_coefficients; ay: generic alpha_y; zeta [N/m^3]; surface_z [m].
+    co: (18,) from combined_coefficients, or (agarwal.SIZE,) Agarwal's model's parameters
+    (``Material.kernel_coefficients``); ay: generic alpha_y; zeta [N/m^3]; surface_z [m].
     """
     n = pos.shape[0]
     buf, idx = _scratch()
@@ -259,7 +270,7 @@ def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
                 buf, idx, k, i, n_hat[i, 0], n_hat[i, 1], n_hat[i, 2], vel[i, 0], vel[i, 1],
                 vel[i, 2], surface_z - pos[i, 2], area[i], True,
             )  # fmt: skip
-        _evaluate(buf, k, co, ay, zeta)
+        _evaluate_model(buf, k, co, ay, zeta)
         for j in range(k):
             i = idx[j]
             out[i, 0] = buf[9, j]
@@ -306,13 +317,13 @@ def body_wrench(
 ):  # fmt: skip
     """Add to wrench (6,) the RFT wrench on elements start..stop of a body; returns #acting.
 
-    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co (18,)
-    combined coefficients, ay the generic alpha_y, zeta [N/m^3]; surface_prm, surface_grid, soil
-    the free surface (mjrft.core.surface; depth measured vertically; soil is read only by a
-    deforming one); region (2, 3) world box of the medium, used if use_region. rot (3, 3)
-    body -> world; pos (3,) body origin [m]; omega (3,) angular velocity [rad/s]; v_ref (3,)
-    linear velocity [m/s] of the world point p_ref
-    (3,) moving with the body; com (3,): point about which torque is taken [m]; all world frame.
+    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co: the
+    model's coefficients (``forces``), ay the generic alpha_y, zeta [N/m^3]; surface_prm,
+    surface_grid, soil the free surface (mjrft.core.surface; depth measured vertically; soil is
+    read only by a deforming one); region (2, 3) world box of the medium, used if use_region.
+    rot (3, 3) body -> world; pos (3,) body origin [m]; omega (3,) angular velocity [rad/s];
+    v_ref (3,) linear velocity [m/s] of the world point p_ref (3,) moving with the body; com
+    (3,): point about which torque is taken [m]; all world frame.
     elem_force (n, 3): forces [N] are written for elements start..stop (zero where nothing acts).
     """
     buf, idx = _scratch()
@@ -365,7 +376,7 @@ def body_wrench(
                 r20 * mx + r21 * my + r22 * mz, ux + wy * dz - wz * dy, uy + wz * dx - wx * dz,
                 uz + wx * dy - wy * dx, depth, area[i], True,
             )  # fmt: skip
-        _evaluate(buf, k, co, ay, zeta)
+        _evaluate_model(buf, k, co, ay, zeta)
         for j in range(k):
             fx, fy, fz = buf[9, j], buf[10, j], buf[11, j]
             if fx == 0.0 and fy == 0.0 and fz == 0.0:

@@ -25,7 +25,18 @@ from types import MappingProxyType
 
 import numpy as np
 
+from mjrft.core import agarwal
 from mjrft.core.units import N_PER_CM3
+
+#: Force models (``Material.model``): Treers, Cao & Stuart 2021 on Li, Zhang & Goldman 2013
+#: (the default), and Agarwal, Goldman & Kamrin 2023 (``mjrft.core.agarwal``).
+MODELS = ("treers2021", "agarwal3d")
+#: Agarwal's generic vertical coefficient of a horizontal plate pushed straight down: -(sum of
+#: C1, C2 and C3), since x1 = x2 = x3 = 1 there (0.87504).
+AGARWAL_PLATE_DOWN = -(sum(agarwal.C1) + sum(agarwal.C2) + sum(agarwal.C3))
+#: Default intruder-medium friction of the agarwal3d model: large enough never to cap the
+#: tangential part (the source's example uses 10).
+AGARWAL_MU_SURF = 10.0
 
 #: The (m, n) harmonics of Li 2013's first-order Fourier fit, in a fixed order.
 HARMONICS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
@@ -279,6 +290,8 @@ class Material:
       alpha_y_fn: generic-form callable beta -> alpha_y, or None for the constant ``alpha_y0``.
       alpha_y0: constant generic out-of-plane coefficient used when alpha_y_fn is None.
       source: where the numbers come from.
+      agarwal: the parameters of Agarwal et al.'s 3D-RFT (``mjrft.core.agarwal.parameters``)
+        when that is the force model (``model``, ``with_model``), else None.
     """
 
     name: str
@@ -289,6 +302,7 @@ class Material:
     alpha_y_fn: AlphaYFn | None = field(default=None, repr=False)
     alpha_y0: float = 0.0
     source: str = ""
+    agarwal: np.ndarray | None = field(default=None, repr=False)
 
     # ----------------------------------------------------------------- constructors
     @classmethod
@@ -436,14 +450,59 @@ class Material:
             source=source,
         )
 
+    def with_model(self, model: str, *, mu_surf: float = AGARWAL_MU_SURF) -> Material:
+        """This medium under force model ``model`` (``MODELS``): itself for "treers2021"; for
+        "agarwal3d", Agarwal et al.'s 3D-RFT with its scale xi_n matched to this medium's at the
+        motion every table is normalised by, a horizontal plate pushed straight down
+        (xi_n = alpha_z(0, pi/2) / AGARWAL_PLATE_DOWN), and intruder-medium friction mu_surf."""
+        if model not in MODELS:
+            raise ValueError(f"unknown force model {model!r}; valid: {', '.join(MODELS)}")
+        if model == "treers2021" or self.agarwal is not None:
+            return self
+        if self.fourier is None:
+            raise ValueError(
+                f"material {self.name!r} is given by callables: the agarwal3d model needs its "
+                "scale, alpha_z of a plate pushed straight down; give a preset, zeta or a table"
+            )
+        if not (math.isfinite(mu_surf) and mu_surf >= 0.0):
+            raise ValueError(f"mu_surf = {mu_surf!r}: expected a finite friction coefficient >= 0")
+        plate_down = float(self.fourier.alpha_z(np.array(0.0), np.array(math.pi / 2)))
+        return Material.agarwal3d(self.zeta * plate_down / AGARWAL_PLATE_DOWN, mu_surf,
+                                  name=f"{self.name} (agarwal3d)",
+                                  source=f"{self.source}; scale matched for agarwal3d")  # fmt: skip
+
+    @classmethod
+    def agarwal3d(
+        cls, xi_n: float, mu_surf: float = AGARWAL_MU_SURF, *, name: str = "", source: str = ""
+    ) -> Material:
+        """Agarwal et al.'s 3D-RFT (``mjrft.core.agarwal``) with scale xi_n [N/m^3] (from bulk
+        density and internal friction: ``agarwal.xi_n``) and intruder-medium friction."""
+        xi = _check_zeta(xi_n)
+        if not (math.isfinite(mu_surf) and mu_surf >= 0.0):
+            raise ValueError(f"mu_surf = {mu_surf!r}: expected a finite friction coefficient >= 0")
+        params = agarwal.parameters(1.0, 1.0, mu_surf)
+        params[agarwal.XI_N] = xi
+        return cls(name or f"agarwal3d (xi_n={xi / N_PER_CM3:g} N/cm^3)",
+                   xi * AGARWAL_PLATE_DOWN, source=source or "Agarwal, Goldman & Kamrin 2023",
+                   agarwal=params)  # fmt: skip
+
+    @property
+    def model(self) -> str:
+        """The force model: "treers2021" (Treers et al. 2021 on Li 2013) or "agarwal3d"."""
+        return "agarwal3d" if self.agarwal is not None else "treers2021"
+
     @property
     def compiled(self) -> bool:
-        """True if the compiled kernel evaluates this medium (Fourier form, constant alpha_y)."""
-        return self.fourier is not None and self.alpha_y_fn is None
+        """True if the compiled kernel evaluates this medium (Fourier form, constant alpha_y, or
+        the agarwal3d model)."""
+        return (self.fourier is not None or self.agarwal is not None) and self.alpha_y_fn is None
 
     @functools.cached_property
     def kernel_coefficients(self) -> np.ndarray:
-        """(18,) generic coefficients in the compiled kernel's combined form (Fourier media)."""
+        """The compiled kernel's coefficients: (18,) generic coefficients in its combined form
+        (Fourier media), or (agarwal.SIZE,) parameters of the agarwal3d model."""
+        if self.agarwal is not None:
+            return self.agarwal
         if self.fourier is None:
             raise ValueError(f"material {self.name!r} is given by callables, not coefficients")
         return combined_coefficients(self.fourier)

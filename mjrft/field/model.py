@@ -184,7 +184,7 @@ def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
 
 
 def material_coef(material, material_key: int) -> np.ndarray:
-    """(18,) kernel coefficients of a compiled medium (zeros for a Python one)."""
+    """Kernel coefficients of a compiled medium ((18,) zeros for a Python one)."""
     return material.kernel_coefficients if material_key == 0 else np.zeros(18)
 
 
@@ -214,6 +214,7 @@ def build_tables(
     f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
     i8, f8 = np.int64, np.float64
     ng, nk = len(geoms), len(bodies)
+    coef = material_coef(scene.material, material_key)
     small = arena({  # read every pass: side by side (tables.arena)
         "tgeom_geomid": ((ng,), i8, geoms), "tgeom_tbody": ((ng,), i8, tbody),
         "tgeom_elemadr": ((ng,), i8, adr), "tgeom_elemnum": ((ng,), i8, num),
@@ -223,7 +224,7 @@ def build_tables(
         "tbody_geomadr": ((nk,), i8, geomadr), "tbody_geomnum": ((nk,), i8, geomnum),
         "tbody_treat": ((nk,), i8, np.asarray(treat, dtype=i8)),
         "region": ((2, 3), f8, np.zeros((2, 3)) if scene.region is None else scene.region),
-        "coef": ((18,), f8, material_coef(scene.material, material_key)),
+        "coef": (coef.shape, f8, coef),
         **_mechanism_specs(model, bodies, mech),
     })  # fmt: skip
     addr = layout.model_addresses(model)
@@ -274,5 +275,5 @@ def build_tables(
     )
     nrow, ncol = scene.surface.grid.shape
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),
-             "surface_nrow": nrow, "surface_ncol": ncol}  # fmt: skip
+             "surface_nrow": nrow, "surface_ncol": ncol, "ncoef": len(coef)}  # fmt: skip
     return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))

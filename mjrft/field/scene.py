@@ -7,6 +7,10 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:zeta" data="330000"/>         Li generic set scaled by zeta [N/m^3],
       <numeric name="mjrft:coefficients" data="A00 A10 B11 B01 B-11 C11 C01 C-11 D10"/>
                                                          optional generic-form set with mjrft:zeta
+      <text name="mjrft:model" data="treers2021"/>       force model: treers2021 (default) or
+                                                         agarwal3d (mjrft.core.agarwal; its scale
+                                                         matched to the material's)
+      <numeric name="mjrft:mu_surf" data="10"/>          agarwal3d's intruder-medium friction
       <numeric name="mjrft:surface_z" data="0"/>         free-surface height [m] (default 0)
       <numeric name="mjrft:surface_slope" data="10 90"/> or a tilted plane through (0, 0,
                                                          surface_z): slope and downhill azimuth
@@ -50,13 +54,19 @@ import numpy as np
 
 from mjrft.core import geometry, soil
 from mjrft.core import surface as surface_mod
-from mjrft.core.material import PRESETS, FourierCoefficients, Material, warn_if_unusual_zeta
+from mjrft.core.material import (
+    MODELS,
+    PRESETS,
+    FourierCoefficients,
+    Material,
+    warn_if_unusual_zeta,
+)
 from mjrft.core.surface import Surface
 from mjrft.field.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 
 PREFIX = "mjrft:"
 KEYS = {
-    "text": ("material", "low_speed", "surface_hfield"),
+    "text": ("material", "low_speed", "surface_hfield", "model"),
     "numeric": (
         "zeta",
         "coefficients",
@@ -70,6 +80,7 @@ KEYS = {
         "deform_cell",
         "repose",
         "deform_every",
+        "mu_surf",
     ),
     "tuple": ("intruders",),
 }
@@ -313,6 +324,7 @@ def scene_from_model(
             f"{', '.join(sorted(PRESETS))}) or <numeric name='{PREFIX}zeta' data='...'/> to "
             "<custom>, or pass material= to GranularField"
         )
+    material = _force_model(model, custom, material)
     surface = _numeric_field(model, custom, "surface_z", (1,), "one finite number [m]")
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
@@ -449,6 +461,24 @@ def load_model(
         return model
     spec.nuserdata = need
     return spec.compile()
+
+
+def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Material:
+    """The material under the force model mjrft:model names (``material.MODELS``; default
+    treers2021), with mjrft:mu_surf for agarwal3d."""
+    if "model" not in custom:
+        return material
+    name = _text(model, custom["model"][1])
+    where = f"<text name='{PREFIX}model'> = {name!r}"
+    if name not in MODELS:
+        raise SceneError(f"{where}: unknown force model; valid: {', '.join(MODELS)}")
+    mu = _numeric_field(model, custom, "mu_surf", (1,), "one friction coefficient >= 0")
+    try:
+        if mu is None:
+            return material.with_model(name)
+        return material.with_model(name, mu_surf=float(mu[0]))
+    except ValueError as exc:
+        raise SceneError(f"{where}: {exc}") from None
 
 
 def _deforming(model, custom, initial: Surface, region, material, options) -> Surface:

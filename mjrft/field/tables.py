@@ -68,7 +68,7 @@ class FieldModel(NamedTuple):
     region: np.ndarray  # (2, 3) world box [m]: min corner, max corner
     zeta: float  # scale of the medium [N/m^3]
     alpha_y: float  # generic out-of-plane coefficient
-    coef: np.ndarray  # (18,) kernel coefficients (mjrft.core.material.combined_coefficients)
+    coef: np.ndarray  # (ncoef,) kernel coefficients (Material.kernel_coefficients)
     material_key: int  # 0: the compiled kernel; else the Python material's key
     treat: int  # 1 if the low-speed treatment is on
     reach: float  # its reach
@@ -194,7 +194,7 @@ def _sizes(names: tuple[str, ...]) -> list[tuple[str, type]]:
     return [(n, np.int64) for n in names]
 
 
-_MODEL_SIZES = ("nelem", "ntgeom", "ntbody", "surface_nrow", "surface_ncol")
+_MODEL_SIZES = ("nelem", "ntgeom", "ntbody", "surface_nrow", "surface_ncol", "ncoef")
 _FLOAT_SCALARS = {"surface_z", "zeta", "alpha_y", "reach", "jacobian_step", "rk4_hold_steps"}
 _INT_SCALARS = {
     "nbody", "ngeom", "use_region", "material_key", "treat", "dsbl_gravity", "int_rk4", "nv",
@@ -293,7 +293,7 @@ def unpack_model(address):
         _i(t.tgeom_elemadr, ng), _i(t.tgeom_elemnum, ng), _f(t.tgeom_rbound, ng),
         _i(t.tbody_bodyid, nk), _i(t.tbody_rootid, nk), _i(t.tbody_geomadr, nk),
         _i(t.tbody_geomnum, nk), _i(t.tbody_treat, nk), t.surface_z, t.use_region,
-        _f(t.region, (2, 3)), t.zeta, t.alpha_y, _f(t.coef, 18), t.material_key, t.treat,
+        _f(t.region, (2, 3)), t.zeta, t.alpha_y, _f(t.coef, t.ncoef), t.material_key, t.treat,
         t.reach, t.jacobian_step, t.rk4_hold_steps, t.dsbl_gravity, t.int_rk4,
         _f(t.opt_timestep, 1), _f(t.opt_gravity, 3),
         numba.carray(i32_ptr(t.opt_disableflags), 1), numba.carray(i32_ptr(t.opt_integrator), 1),
