@@ -13,7 +13,8 @@ Action (2,), float64:
       ``MAX_PHASE_RATE`` until they reach the new offset.
 
 Observations (ordered dict, float64):
-  height (1,): torso (hip axes) height above the surface under it (vertical) [m];
+  height (1,): torso (hip axes) height above the surface under it (vertical) [m]; on deforming
+    ground, above the ground as it is now;
   up (3,): world up in the torso frame; heading (2,): cos, sin of the torso yaw;
   velocity (3,) [m/s], angular_velocity (3,) [rad/s]: torso, in the torso frame;
   leg_phase (12,): cos, sin of the six hip angles (LF LM LR RF RM RR);
@@ -124,8 +125,11 @@ class HexapodWalk(base.Task):
         d = physics.data
         rot = d.xmat[1].reshape(3, 3)  # torso (body 1), world <- torso
         hips = d.qpos[HIP_QPOS]
+        fld = physics.field
+        # The surface under the torso: the deforming ground as it is now, else the fixed one.
+        ground = fld.soil(physics.data.ptr).height_at if fld.deforms else fld.surface.height
         return collections.OrderedDict(
-            height=d.qpos[2] - physics.field.surface.height(d.qpos[0:1], d.qpos[1:2]),
+            height=d.qpos[2] - ground(d.qpos[0:1], d.qpos[1:2]),
             up=rot[2].copy(),
             heading=np.array([rot[0, 0], rot[1, 0]]) / max(1e-12, math.hypot(rot[0, 0], rot[1, 0])),
             velocity=rot.T @ d.qvel[0:3],

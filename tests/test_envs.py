@@ -452,6 +452,9 @@ def test_hexapod_on_deforming_ground_leaves_footprints_and_conserves_volume():
         assert abs(soil.volume()) <= 1e-9 * cut
         assert soil.height.min() < -0.01 and soil.height.max() > 0.003  # m
         assert physics.data.qpos[0] > 1.0  # it walked (1.5 m measured)
+        torso = physics.data.qpos[:3]
+        obs = env._task.get_observation(physics)["height"][0]
+        assert obs == pytest.approx(torso[2] - soil.height_at(torso[0], torso[1]), abs=1e-12)
         env.reset()
         assert not np.any(physics.field.soil(physics.data.ptr).height)
     finally:
