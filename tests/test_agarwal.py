@@ -151,3 +151,8 @@ def test_a_material_without_the_models_scale_is_refused():
         callables.with_model("agarwal3d")
     with pytest.raises(ValueError, match="unknown force model"):
         GLASS.with_model("rft2013")
+    with pytest.raises(ValueError, match="is an agarwal3d medium"):
+        GLASS.with_model("treers2021")
+    rough = GLASS.with_model("agarwal3d", mu_surf=0.3)
+    assert rough.agarwal[agarwal.MU_SURF] == 0.3
+    assert rough.agarwal[agarwal.XI_N] == GLASS.agarwal[agarwal.XI_N]

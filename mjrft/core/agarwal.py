@@ -105,7 +105,7 @@ def evaluate(buf, k, p):
         wx, wy, wz = buf[5, j], buf[6, j], buf[7, j]
         inv = 1.0 / math.sqrt(wx * wx + wy * wy + wz * wz)
         vx, vy, vz = wx * inv, wy * inv, wz * inv
-        vh, nh = math.hypot(vx, vy), math.hypot(nx, ny)
+        vh, nh = math.sqrt(vx * vx + vy * vy), math.sqrt(nx * nx + ny * ny)  # unit vectors
         if vh > HORIZONTAL_EPS:
             rx, ry = vx / vh, vy / vh
         elif nh > HORIZONTAL_EPS:
@@ -113,19 +113,22 @@ def evaluate(buf, k, p):
         else:
             rx, ry = 1.0, 0.0
         tx, ty = -ry, rx  # theta = z x r
-        nr = nx * rx + ny * ry
-        a = math.acos(min(1.0, max(-1.0, nz)))
-        if nr >= 0.0:
-            beta = -a if nz >= 0.0 else math.pi - a
-        else:
-            beta = a if nz >= 0.0 else a - math.pi
-        g = math.acos(min(1.0, max(-1.0, vx * rx + vy * ry)))
-        gamma = g if vz <= 0.0 else -g
-        psi = 0.0
+        # The angles' sines and cosines from components (no trigonometric calls):
+        # beta = -+acos(nz) or +-(pi - acos(nz)) by the signs of n . r and nz, so cos beta =
+        # |nz| and |sin beta| = |n_h|; gamma = +-acos(v . r), + when moving down; psi =
+        # atan((n . theta) / (n . r)) in (-pi/2, pi/2), so cos psi >= 0.
+        nr, nt = nx * rx + ny * ry, nx * tx + ny * ty
+        cb = abs(nz)
+        sb = -nh if (nr >= 0.0) == (nz >= 0.0) else nh
+        cg = vx * rx + vy * ry
+        sg = math.sqrt(max(0.0, 1.0 - cg * cg))
+        if vz > 0.0:
+            sg = -sg
+        cp, sp = 1.0, 0.0
         if nh > HORIZONTAL_EPS and nr != 0.0:
-            psi = math.atan((nx * tx + ny * ty) / nr)
-        sb, cb, sg, cg = math.sin(beta), math.cos(beta), math.sin(gamma), math.cos(gamma)
-        sp, cp = math.sin(psi), math.cos(psi)
+            inv_h = 1.0 / math.sqrt(nr * nr + nt * nt)
+            cp = abs(nr) * inv_h
+            sp = nt * inv_h if nr > 0.0 else -nt * inv_h  # tan psi cos psi
         x1, x2, x3 = sg, cb, cp * cg * sb + sg * cb
         f1 = _cubic(p, COEF0, x1, x2, x3)
         f2 = _cubic(p, COEF0 + NTERMS, x1, x2, x3)

@@ -457,8 +457,16 @@ class Material:
         (xi_n = alpha_z(0, pi/2) / AGARWAL_PLATE_DOWN), and intruder-medium friction mu_surf."""
         if model not in MODELS:
             raise ValueError(f"unknown force model {model!r}; valid: {', '.join(MODELS)}")
-        if model == "treers2021" or self.agarwal is not None:
+        if model == "treers2021":
+            if self.agarwal is not None:
+                raise ValueError(
+                    f"material {self.name!r} is an agarwal3d medium: build the treers2021 one "
+                    "from its preset, zeta or table"
+                )
             return self
+        if self.agarwal is not None:  # already agarwal3d: a new surface friction
+            return Material.agarwal3d(self.agarwal[agarwal.XI_N], mu_surf, name=self.name,
+                                      source=self.source)  # fmt: skip
         if self.fourier is None:
             raise ValueError(
                 f"material {self.name!r} is given by callables: the agarwal3d model needs its "
