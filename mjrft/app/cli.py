@@ -409,7 +409,8 @@ def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: st
     metadata.write(
         out / RUN_JSON,
         run.record(args, status, simulated_s=t_end, rows=rec.n_rows, outputs=outputs,
-                   timing={k: v for k, v in timing.items() if v == v}),
+                   timing={k: v for k, v in timing.items() if v == v},
+                   max_froude=rec.max_froude),
     )  # fmt: skip
     sim = run.simulation
     rate = f"{t_end / sim:.2f}x real time" if sim == sim and sim > 0 else "no steps"

@@ -15,6 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from mjrft.app.regime import FroudeWatch
 from mjrft.field.granular_field import GranularField
 
 INTEGRATORS = {
@@ -155,12 +156,15 @@ class Recording:
       rows: recorded rows, one per recorded step (kept in memory unless a sink streams them).
       body_names: intruding bodies, in column order.
       sink: a CsvSink the rows are streamed to instead (then ``rows`` stays empty).
+      max_froude: after ``run``, body name -> the largest Froude number v^2/(g L) it reached in
+        the medium (``mjrft.app.regime``; above 1 the run left the quasi-static regime).
     """
 
     columns: list[str]
     body_names: list[str]
     rows: list[np.ndarray] = field(default_factory=list)
     sink: CsvSink | None = None
+    max_froude: dict[str, float] = field(default_factory=dict)
 
     def append(self, row: np.ndarray) -> None:
         """Record one row."""
@@ -328,6 +332,8 @@ def run(
     rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     warnings = data.warning.number  # a live view: MuJoCo counts each warning here
     diverged = _diverging_count(warnings)
+    watch = FroudeWatch(model, fld)
+    rec.max_froude = watch.max_froude
     with fld.installed():
         wrench = fld.wrench_of(data)  # a live view of this MjData's last pass
         for i in range(n_steps):
@@ -338,6 +344,7 @@ def run(
                 mujoco.mj_forward(model, data)
                 if record:
                     rec.append(record_row(model, data, fld, wrench))
+                    watch.observe(t_prev, data, wrench)
                 if observe:
                     observer(i, t_prev, data)
             if apply_ctrl is not None:
@@ -345,6 +352,8 @@ def run(
             mujoco.mj_step(model, data)
             if _diverging_count(warnings) != diverged:
                 raise _divergence(data, i, t_prev, model.opt.timestep)
+            if not rk4:
+                watch.check(i, t_prev, data, wrench)
             if record and not rk4:
                 rec.append(record_row(model, data, fld, wrench, time=t_prev))
             if observe and not rk4:
