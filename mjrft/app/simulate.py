@@ -15,7 +15,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from mjrft.app.regime import FroudeWatch
+from mjrft.app.regime import FroudeWatch, com_velocity
 from mjrft.field.granular_field import GranularField
 
 INTEGRATORS = {
@@ -249,16 +249,9 @@ def record_row(
     """
     w = fld.wrench(data) if wrench is None else wrench
     ids = fld.body_ids
-    # Linear velocity of each CoM in the world frame: cvel is (angular, linear) at the c-frame
-    # origin, the subtree CoM of the body's root (mj_objectVelocity's transform, vectorised).
-    cvel = data.cvel[ids]
-    arm = data.xipos[ids] - data.subtree_com[model.body_rootid[ids]]
     per_body = np.empty((len(ids), 12))  # column order: CoM, its velocity, wrench
     per_body[:, :3] = data.xipos[ids]
-    wx, wy, wz = cvel[:, 0], cvel[:, 1], cvel[:, 2]  # omega x arm, written out (np.cross: 10 us)
-    per_body[:, 3] = cvel[:, 3] + wy * arm[:, 2] - wz * arm[:, 1]
-    per_body[:, 4] = cvel[:, 4] + wz * arm[:, 0] - wx * arm[:, 2]
-    per_body[:, 5] = cvel[:, 5] + wx * arm[:, 1] - wy * arm[:, 0]
+    com_velocity(model, data, ids, per_body[:, 3:6])
     per_body[:, 6:] = w[ids]
     t = data.time if time is None else time
     return np.concatenate([[t], per_body.ravel(), data.sensordata])

@@ -69,10 +69,11 @@ def xi_n(rho_c: float, mu_int: float, gravity: float = GRAVITY) -> float:
     return rho_c * gravity * (894.0 * mu_int**3 - 386.0 * mu_int**2 + 89.0 * mu_int)
 
 
-def parameters(rho_c: float, mu_int: float, mu_surf: float) -> np.ndarray:
-    """(SIZE,) parameter vector of the compiled model (layout: XI_N, MU_SURF, COEF0)."""
+def parameters(xi: float, mu_surf: float) -> np.ndarray:
+    """(SIZE,) parameter vector of the compiled model (layout: XI_N, MU_SURF, COEF0) for scale
+    xi [N/m^3] (``xi_n``) and intruder-medium friction mu_surf."""
     out = np.empty(SIZE)
-    out[XI_N] = xi_n(rho_c, mu_int)
+    out[XI_N] = xi
     out[MU_SURF] = mu_surf
     out[COEF0:] = np.concatenate([C1, C2, C3])
     return out

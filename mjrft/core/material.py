@@ -472,8 +472,6 @@ class Material:
                 f"material {self.name!r} is given by callables: the agarwal3d model needs its "
                 "scale, alpha_z of a plate pushed straight down; give a preset, zeta or a table"
             )
-        if not (math.isfinite(mu_surf) and mu_surf >= 0.0):
-            raise ValueError(f"mu_surf = {mu_surf!r}: expected a finite friction coefficient >= 0")
         plate_down = float(self.fourier.alpha_z(np.array(0.0), np.array(math.pi / 2)))
         return Material.agarwal3d(self.zeta * plate_down / AGARWAL_PLATE_DOWN, mu_surf,
                                   name=f"{self.name} (agarwal3d)",
@@ -488,11 +486,9 @@ class Material:
         xi = _check_zeta(xi_n)
         if not (math.isfinite(mu_surf) and mu_surf >= 0.0):
             raise ValueError(f"mu_surf = {mu_surf!r}: expected a finite friction coefficient >= 0")
-        params = agarwal.parameters(1.0, 1.0, mu_surf)
-        params[agarwal.XI_N] = xi
         return cls(name or f"agarwal3d (xi_n={xi / N_PER_CM3:g} N/cm^3)",
                    xi * AGARWAL_PLATE_DOWN, source=source or "Agarwal, Goldman & Kamrin 2023",
-                   agarwal=params)  # fmt: skip
+                   agarwal=agarwal.parameters(xi, mu_surf))  # fmt: skip
 
     @property
     def model(self) -> str:

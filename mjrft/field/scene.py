@@ -55,6 +55,7 @@ import numpy as np
 from mjrft.core import geometry, soil
 from mjrft.core import surface as surface_mod
 from mjrft.core.material import (
+    AGARWAL_MU_SURF,
     MODELS,
     PRESETS,
     FourierCoefficients,
@@ -474,9 +475,7 @@ def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Mat
         raise SceneError(f"{where}: unknown force model; valid: {', '.join(MODELS)}")
     mu = _numeric_field(model, custom, "mu_surf", (1,), "one friction coefficient >= 0")
     try:
-        if mu is None:
-            return material.with_model(name)
-        return material.with_model(name, mu_surf=float(mu[0]))
+        return material.with_model(name, mu_surf=AGARWAL_MU_SURF if mu is None else float(mu[0]))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
 
