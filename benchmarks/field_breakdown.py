@@ -53,7 +53,7 @@ def _loop_native(reps, field_addr, data_addr, mode):
 def _loop_wrench(reps, args, wrench, elem_force):
     s = 0
     for _ in range(reps):
-        s += _kernel.body_wrench(*args, wrench, elem_force)
+        s += _kernel.body_wrench(*args, wrench, elem_force, np.empty((0, _kernel.ROW)))
     return s
 
 
@@ -77,7 +77,16 @@ def wrench_two_threads(args, start, stop, wrench, elem_force):
             a = start + c * _kernel.CHUNK
             b = min(stop, a + _kernel.CHUNK)
             count[p] += _kernel.body_wrench(
-                args[0], args[1], args[2], a, b, *args[5:], partial[p], elem_force
+                args[0],
+                args[1],
+                args[2],
+                args[3],
+                args[4],
+                a,
+                b,
+                *args[7:],
+                partial[p],
+                elem_force,
             )
     for p in range(parts):
         for c in range(6):
@@ -124,15 +133,16 @@ def main() -> None:
     b, root = int(fm.tbody_bodyid[0]), int(fm.tbody_rootid[0])
     start, stop = int(fm.tgeom_elemadr[0]), int(fm.tgeom_elemadr[0] + fm.tgeom_elemnum[0])
     wargs = (
-        fm.elem_pos, fm.elem_normal, fm.elem_area, start, stop, fm.coef, fm.alpha_y, fm.zeta,
-        fm.surface_prm, fm.surface_grid, False, np.zeros((2, 3)), d.xmat[b].reshape(3, 3).copy(),
+        fm.elem_pos, fm.elem_normal, fm.elem_area, fm.elem_reach, fm.elem_patch, start, stop,
+        fm.coef, fm.alpha_y, fm.zeta, fm.surface_prm, fm.surface_grid, False, np.zeros((2, 3)),
+        np.zeros(1), d.xmat[b].reshape(3, 3).copy(),
         d.xpos[b].copy(),
         d.cvel[b, :3].copy(), d.cvel[b, 3:].copy(), d.subtree_com[root].copy(),
         d.xipos[b].copy(),
     )  # fmt: skip
     n_el = len(fm.elem_area)
     w1, e1 = np.zeros(6), np.zeros((n_el, 3))
-    acting = _kernel.body_wrench(*wargs, w1, e1)
+    acting = _kernel.body_wrench(*wargs, w1, e1, np.empty((0, _kernel.ROW)))
     w2, e2 = np.zeros(6), np.zeros((n_el, 3))
     acting2 = wrench_two_threads(wargs, start, stop, w2, e2)
     if acting2 != acting or not np.array_equal(e1, e2):

@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 
 from mjrft import Material  # noqa: E402
 from mjrft.app import metadata  # noqa: E402
-from mjrft.core import kernel, surface  # noqa: E402
+from mjrft.core import kernel, quadrature, surface  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
 CALLS = 200
@@ -58,13 +58,30 @@ def main() -> None:
     normal = rng.normal(size=(n, 3))
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     area = np.full(n, 1e-5)
+    # Point elements (reach 0): the one-point rule, the cost this script compares across surfaces.
+    reach, patch = np.zeros(n), np.zeros((n, quadrature.PATCH_SIZE))
     wrench, elem_force, zero = np.zeros(6), np.zeros((n, 3)), np.zeros(3)
     vel = np.array([0.1, 0.0, -0.2])
     surfaces = variants()
     medium = (glass.kernel_coefficients, glass.alpha_y0, glass.zeta)
-    motion = (np.eye(3), zero, zero, vel, zero, zero, wrench, elem_force)
+    motion = (np.eye(3), zero, zero, vel, zero, zero, wrench, elem_force, np.empty((0, kernel.ROW)))
     args_of = {
-        name: (cent, normal, area, 0, n, *medium, s.prm, s.grid, False, np.zeros((2, 3)), *motion)
+        name: (
+            cent,
+            normal,
+            area,
+            reach,
+            patch,
+            0,
+            n,
+            *medium,
+            s.prm,
+            s.grid,
+            False,
+            np.zeros((2, 3)),
+            np.zeros(1),
+            *motion,
+        )
         for name, s in surfaces.items()
     }
     times = {name: [] for name in surfaces}

@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import mujoco
 import numpy as np
+import quadrature_reference
 
 import mjrft
 from mjrft.core import surface
@@ -367,19 +368,26 @@ def candidates(field, data, be) -> np.ndarray | None:
 def body_wrench_at(field, data, be, idx, omega, v_ref, p_ref) -> np.ndarray:
     """(6,) RFT wrench on elements idx of body be at its current pose, moving with angular
     velocity omega (3,) and linear velocity v_ref (3,) at the world point p_ref (3,); torque
-    about the body's CoM. Elements outside the region feel nothing."""
+    about the body's CoM. Elements outside the region feel nothing. The quadrature of
+    mjrft.core.quadrature, from its slow reference (tests/quadrature_reference.py)."""
+    f, x = element_forces_at(field, data, be, idx, omega, v_ref, p_ref)
     b = be.body
-    rot = data.xmat[b].reshape(3, 3)
-    pos = be.centroids[idx] @ rot.T + data.xpos[b]
-    normal = be.normals[idx] @ rot.T
-    vel = v_ref + np.cross(omega, pos - p_ref)
-    # Depth is vertical below the local surface: shift each element by its surface's height.
-    shifted = pos.copy()
-    shifted[:, 2] -= surface_height(field, pos[:, 0], pos[:, 1]) - field.surface_z
-    f = mjrft.element_forces(shifted, normal, be.areas[idx], vel, field.material, field.surface_z)
-    if field.region is not None:
-        f[~np.all((pos >= field.region[0]) & (pos <= field.region[1]), axis=1)] = 0.0
-    return np.concatenate([f.sum(axis=0), np.cross(pos - data.xipos[b], f).sum(axis=0)])
+    return np.concatenate([f.sum(axis=0), np.cross(x - data.xipos[b], f).sum(axis=0)])
+
+
+def element_forces_at(field, data, be, idx, omega, v_ref, p_ref):
+    """(forces (k, 3) [N], points (k, 3) [m]) of elements idx of body be, as body_wrench_at."""
+    b = be.body
+    reach, patch = be.quadrature
+
+    def depth_of(p: np.ndarray) -> np.ndarray:  # vertical, below the local surface
+        return surface_height(field, p[..., 0], p[..., 1]) - p[..., 2]
+
+    return quadrature_reference.element_forces(
+        be.centroids[idx], be.normals[idx], be.areas[idx], reach[idx], patch[idx],
+        data.xmat[b].reshape(3, 3), data.xpos[b], omega, v_ref, p_ref, field.material,
+        depth_of, field.region,
+    )  # fmt: skip
 
 
 def pure_wrench(field, data) -> np.ndarray:

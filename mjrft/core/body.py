@@ -1,9 +1,10 @@
 """Rigid-body RFT: element sets in a body frame + pose + twist -> force and moment (world frame).
 
 This generalises what the authors' MATLAB ``rft_3D_body`` does: any element set, any pose, any
-point about which moments are taken, and whole prescribed trajectories at once. Fourier-form
-media run on the compiled kernel (one thread, no BLAS, whatever the machine's load); media
-given as Python callables on the NumPy evaluation.
+point about which moments are taken, and whole prescribed trajectories at once, with the
+kernel's surface quadrature (``mjrft.core.quadrature``). Fourier-form media run on the compiled
+kernel (one thread, no BLAS, whatever the machine's load); for media given as Python callables
+the kernel places the quadrature points and the NumPy evaluation gives their forces.
 """
 
 from __future__ import annotations
@@ -12,13 +13,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjrft.core import kernel
+from mjrft.core import kernel, surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
-from mjrft.core.rft import element_forces
-
-# Elements evaluated per kernel call in trajectory evaluation (bounds temporary memory ~ 100 MB).
-_CHUNK_ELEMENTS = 1_000_000
+from mjrft.core.rft import quadrature_forces
 
 
 class Wrench(NamedTuple):
@@ -72,28 +70,6 @@ def _vec(name: str, x: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
     return a
 
 
-def world_elements(
-    elements: ElementSet,
-    position: np.ndarray,
-    rotation: np.ndarray,
-    lin_vel: np.ndarray,
-    ang_vel: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centroids [m], unit normals and centroid velocities [m/s] in the world frame.
-
-    Args:
-      elements: element set in the body frame.
-      position: (3,) body-frame origin, world frame [m].
-      rotation: (3, 3) body -> world rotation matrix.
-      lin_vel: (3,) velocity of the body-frame origin, world frame [m/s].
-      ang_vel: (3,) angular velocity, world frame [rad/s].
-    """
-    p = elements.centroids @ rotation.T + position
-    n = elements.normals @ rotation.T
-    v = lin_vel + np.cross(ang_vel, p - position)
-    return p, n, v
-
-
 def body_wrench(
     elements: ElementSet,
     position: np.ndarray,
@@ -124,27 +100,41 @@ def body_wrench(
     lin_vel = _vec("lin_vel", lin_vel, (3,))
     ang_vel = _vec("ang_vel", ang_vel, (3,))
     c = position if point is None else _vec("point", point, (3,))
-    if material.compiled:
-        w = _compiled_trajectory(
-            elements, position[None], rotation[None], lin_vel[None], ang_vel[None], c[None],
-            material, surface_z,
-        )  # fmt: skip
-        return Wrench(w[0, :3], w[0, 3:])
-    p, n, v = world_elements(elements, position, rotation, lin_vel, ang_vel)
-    f = element_forces(p, n, elements.areas, v, material, surface_z)
-    return Wrench(f.sum(axis=0), np.cross(p - c, f).sum(axis=0))
-
-
-def _compiled_trajectory(elements, positions, rotations, lin_vels, ang_vels, points, material,
-                         surface_z) -> np.ndarray:  # fmt: skip
-    """(T, 6) wrenches from the compiled kernel (one thread, no BLAS); inputs checked."""
-    c = np.ascontiguousarray
-    out = np.empty((len(positions), 6))
-    kernel.trajectory(
-        c(elements.centroids), c(elements.normals), c(elements.areas),
-        material.kernel_coefficients, material.alpha_y0, material.zeta, float(surface_z),
-        c(rotations), c(positions), c(lin_vels), c(ang_vels), c(points), out,
+    w = _trajectory(
+        elements, position[None], rotation[None], lin_vel[None], ang_vel[None], c[None],
+        material, surface_z,
     )  # fmt: skip
+    return Wrench(w[0, :3], w[0, 3:])
+
+
+def _trajectory(elements, positions, rotations, lin_vels, ang_vels, points, material,
+                surface_z) -> np.ndarray:  # fmt: skip
+    """(T, 6) wrenches from the kernel's quadrature (one thread, no BLAS); inputs checked.
+    Media given by Python callables: the kernel places the quadrature points, NumPy evaluates."""
+    c = np.ascontiguousarray
+    out = np.zeros((len(positions), 6))
+    reach, patch = elements.quadrature
+    cent, norm, area = c(elements.centroids), c(elements.normals), c(elements.areas)
+    if material.compiled:
+        kernel.trajectory(
+            cent, norm, area, reach, patch, material.kernel_coefficients, material.alpha_y0,
+            material.zeta, float(surface_z), c(rotations), c(positions), c(lin_vels),
+            c(ang_vels), c(points), out,
+        )  # fmt: skip
+        return out
+    flat = surface.flat(float(surface_z))
+    n = len(area)
+    scratch, no_region = np.empty((n, 3)), np.zeros((2, 3))
+    for t in range(len(positions)):
+        rows = np.zeros((n, kernel.ROW))
+        kernel.body_wrench(
+            cent, norm, area, reach, patch, 0, n, np.zeros(18), 0.0, 0.0, flat.prm, flat.grid,
+            False, no_region, np.zeros(1), c(rotations[t]), c(positions[t]), c(ang_vels[t]),
+            c(lin_vels[t]), c(positions[t]), c(points[t]), np.zeros(6), scratch, rows,
+        )  # fmt: skip
+        f = quadrature_forces(rows, material)
+        out[t, :3] = f.sum(axis=0)
+        out[t, 3:] = np.cross(rows[:, :3] - points[t], f).sum(axis=0)
     return out
 
 
@@ -184,30 +174,5 @@ def trajectory_wrenches(
     points = positions if points is None else _vec("points", points, (t, 3))
     if not np.isfinite(float(surface_z)):
         raise ValueError(f"surface_z must be finite, got {surface_z}")
-    if material.compiled:
-        w = _compiled_trajectory(
-            elements, positions, rotations, lin_vels, ang_vels, points, material, surface_z
-        )
-        return Wrench(w[:, :3], w[:, 3:])
-    ne = len(elements)
-    forces = np.zeros((t, 3))
-    moments = np.zeros((t, 3))
-    step = max(1, _CHUNK_ELEMENTS // max(ne, 1))
-    for s in range(0, t, step):
-        sl = slice(s, min(t, s + step))
-        r = rotations[sl]
-        p = np.einsum("tij,kj->tki", r, elements.centroids) + positions[sl, None, :]
-        n = np.einsum("tij,kj->tki", r, elements.normals)
-        v = lin_vels[sl, None, :] + np.cross(ang_vels[sl, None, :], p - positions[sl, None, :])
-        k = p.shape[0]
-        f = element_forces(
-            p.reshape(-1, 3),
-            n.reshape(-1, 3),
-            np.tile(elements.areas, k),
-            v.reshape(-1, 3),
-            material,
-            surface_z,
-        ).reshape(k, ne, 3)
-        forces[sl] = f.sum(axis=1)
-        moments[sl] = np.cross(p - points[sl, None, :], f).sum(axis=1)
-    return Wrench(forces, moments)
+    w = _trajectory(elements, positions, rotations, lin_vels, ang_vels, points, material, surface_z)
+    return Wrench(w[:, :3], w[:, 3:])

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mjrft.core import patches
 from mjrft.core.elements import ElementSet
 
 __all__ = [
@@ -74,27 +75,53 @@ MAX_TRIANGLES = 2_000_000
 
 PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 
-#: Accuracy knob: n = max(TOLERANCE_FLOOR, ceil((TOLERANCE_C / tol) ** (1 / TOLERANCE_P)))
-#: triangles for a relative RMS force tolerance tol. Fitted in benchmarks/pareto.py
-#: (benchmarks/RESULTS.md, "Speed vs accuracy"; docs/accuracy.md): errors of a sphere (spinning
-#: and straight down), the pitching ellipsoid (pitching and not) and the root tip converge as C
-#: n^-p with p >= 0.9; the rule takes p = 0.8 and C = 2.1x their envelope (slender shapes
-#: converge with larger C), checked on 14 shape-and-motion cases not used in the fit (capsules,
-#: cylinders, a box, slender and flat ellipsoids: the worst at 78 % of the tolerance). That
-#: p ~ 1 needs lattice lines on the mid-planes (even counts across them): a lattice cutting a
-#: mid-plane errs to first order in axis-aligned translations (p = 0.4-0.6), which would force
-#: 0.8 n^-1/2 (6400 triangles at 1 %).
-TOLERANCE_C = 5.2
-TOLERANCE_P = 0.8
-TOLERANCE_FLOOR = 200
+#: Accuracy knob, per primitive type: n = max(TOLERANCE_FLOOR, ceil((C / tol) ** (1 / p)))
+#: triangles for a relative RMS force tolerance tol, (C, p) = TOLERANCE_RULES[type]. Fitted in
+#: benchmarks/pareto.py (benchmarks/RESULTS.md, "Speed vs accuracy"; docs/accuracy.md): p is
+#: the smallest order fitted on the type's cases (clipped to [0.8, 1]) and C twice the envelope
+#: of their measured errors from 200 triangles up; checked there and in tests/test_tolerance.py
+#: on shapes and motions not used in the fit (tumbling about an oblique axis, grazing, slender,
+#: flat and disc-like shapes).
+TOLERANCE_RULES = {
+    "sphere": (1.2, 0.84),
+    "ellipsoid": (8.0, 1.0),
+    "capsule": (0.89, 0.8),
+    "cylinder": (0.88, 0.92),
+    "box": (0.4, 0.8),
+}
+TOLERANCE_FLOOR = 200  # below ~200 triangles errors are not yet asymptotic (a slender tip)
+#: Aspect ratio (longest over shortest extent, ``aspect_ratio``) of the shape each rule was
+#: fitted on, for the types whose error grows with it: a slender ellipsoid's tips and a long
+#: capsule's tube get few of the triangles, so grazing motions of a 5 x 10 x 30 mm ellipsoid
+#: and a 3 x 25 mm capsule missed 1 % by 2x at the fitted rule; their count scales by
+#: max(1, aspect / TOLERANCE_ASPECT[type]), floor included (grazing slim capsules missed 3 % at
+#: the floor). Cylinders and boxes (discs, plates) did not need it.
+TOLERANCE_ASPECT = {"ellipsoid": 1.875, "capsule": 3.0}
 
 
-def triangles_for_tolerance(tol: float) -> int:
+def aspect_ratio(kind: str, size: Sequence[float] | np.ndarray) -> float:
+    """Longest over shortest extent of a primitive of MuJoCo type name kind and size [m]."""
+    s = np.asarray(size, dtype=np.float64)
+    if kind == "sphere":
+        return 1.0
+    if kind == "capsule":
+        return float((s[0] + s[1]) / s[0])
+    if kind == "cylinder":
+        return float(max(s[0], s[1]) / min(s[0], s[1]))
+    return float(s[:3].max() / s[:3].min())
+
+
+def triangles_for_tolerance(
+    tol: float, kind: str | None = None, size: Sequence[float] | np.ndarray | None = None
+) -> int:
     """Triangle count for a primitive whose RFT force should be within relative RMS error tol.
 
     The error is measured as the RMS over a motion of |F - F_converged| over the peak
-    |F_converged| (benchmarks/pareto.py). Raises ValueError unless 0 < tol < 1 and the count
-    stays within MAX_TRIANGLES.
+    |F_converged| (benchmarks/pareto.py). kind: the primitive type ('sphere', 'ellipsoid',
+    'capsule', 'cylinder', 'box'); None: the largest count over the types. size: its MuJoCo
+    size [m], for the types whose count grows with the aspect ratio (TOLERANCE_ASPECT); None:
+    the fitted shape's. Raises ValueError unless 0 < tol < 1 and the count stays within
+    MAX_TRIANGLES, or for an unknown kind.
     """
     try:
         t = float(tol)
@@ -102,18 +129,27 @@ def triangles_for_tolerance(tol: float) -> int:
         raise ValueError(f"tolerance must be a number in (0, 1), got {tol!r}") from None
     if not (0.0 < t < 1.0):
         raise ValueError(f"tolerance must be in (0, 1) (a relative force error), got {tol!r}")
-    # In log space: a tiny tolerance (1e-300) would overflow the power before the check below.
-    log_n = (math.log(TOLERANCE_C) - math.log(t)) / TOLERANCE_P
-    n = MAX_TRIANGLES + 1 if log_n > math.log(MAX_TRIANGLES) else None
-    n = n or max(TOLERANCE_FLOOR, math.ceil((TOLERANCE_C / t) ** (1.0 / TOLERANCE_P)))
-    if n > MAX_TRIANGLES:
+    if kind is None:
+        return max(triangles_for_tolerance(t, k) for k in TOLERANCE_RULES)
+    if kind not in TOLERANCE_RULES:
         raise ValueError(
-            f"tolerance {t:g} needs about 1e{log_n / math.log(10):.1f} triangles, more than "
-            f"MAX_TRIANGLES = {MAX_TRIANGLES}; "
-            "the smallest supported tolerance is "
-            f"{TOLERANCE_C / MAX_TRIANGLES**TOLERANCE_P:.2g}"
+            f"no tolerance rule for {kind!r}; primitive types: {', '.join(TOLERANCE_RULES)} "
+            "(meshes keep their own triangles)"
         )
-    return n
+    c, p = TOLERANCE_RULES[kind]
+    scale = 1.0
+    if size is not None and kind in TOLERANCE_ASPECT:
+        scale = max(1.0, aspect_ratio(kind, size) / TOLERANCE_ASPECT[kind])
+    # In log space: a tiny tolerance (1e-300) would overflow the power before the check below.
+    log_n = (math.log(c) - math.log(t)) / p + math.log(scale)
+    if log_n > math.log(MAX_TRIANGLES):
+        smallest = max(cc / MAX_TRIANGLES**pp for cc, pp in TOLERANCE_RULES.values())
+        raise ValueError(
+            f"tolerance {t:g} needs about 1e{log_n / math.log(10):.1f} triangles for this "
+            f"{kind}, more than MAX_TRIANGLES = {MAX_TRIANGLES}; the smallest supported "
+            f"tolerance is about {smallest:.2g}"
+        )
+    return math.ceil(scale * max(TOLERANCE_FLOOR, (c / t) ** (1.0 / p)))
 
 
 """Kinds accepted by :func:`primitive` (MuJoCo geom type names)."""
@@ -304,9 +340,11 @@ class _Family:
         lattice_fn: _LatticeFn,
         map_fn: _MapFn,
         allowed: Callable[[Counts], bool] | None = None,
+        surface: patches.Surface | None = None,
     ) -> None:
         self.shape, self.counts, self.lattice, self._map = shape, counts_fn, lattice_fn, map_fn
         self.allowed = allowed if allowed is not None else (lambda counts: True)
+        self.surface = surface  # None: flat faces (a box)
 
     def n_triangles(self, counts: Counts) -> int:
         return _lattice_triangles(self.lattice(counts))
@@ -332,7 +370,7 @@ def _build(family: _Family, n_triangles: object, max_edge: object) -> ElementSet
         counts = _counts_for_max_edge(family, edge)
     vertices, faces = family.mesh(counts)
     log.debug("%s: cell counts %s -> %d triangles", family.shape, counts, len(faces))
-    return ElementSet.from_triangles(vertices, faces)
+    return ElementSet.from_triangles(vertices, faces, family.surface)
 
 
 def _counts_for_n_triangles(family: _Family, target: int) -> Counts:
@@ -498,7 +536,7 @@ def _ellipsoid_impl(
         u = _unit(ijk, _as_dims(counts))
         return _cube_sphere_dirs(u[:, 0], u[:, 1], u[:, 2]) * axes
 
-    family = _Family(shape, counts_fn, _as_dims, map_fn, _all_even)
+    family = _Family(shape, counts_fn, _as_dims, map_fn, _all_even, patches.Ellipsoid(axes))
     return _build(family, n_triangles, max_edge)
 
 
@@ -595,7 +633,7 @@ def cylinder(
         xy = r * _concentric(u[:, 0], u[:, 1])
         return np.column_stack([xy, h * u[:, 2]])
 
-    family = _Family("cylinder", counts_fn, lattice_fn, map_fn, _all_even)
+    family = _Family("cylinder", counts_fn, lattice_fn, map_fn, _all_even, patches.Cylinder(r, h))
     return _build(family, n_triangles, max_edge)
 
 
@@ -654,7 +692,7 @@ def capsule(
         n, band, tube = counts
         return n % 2 == 0 and tube % 2 == 0 and band == n // 2
 
-    family = _Family("capsule", counts_fn, lattice_fn, map_fn, allowed)
+    family = _Family("capsule", counts_fn, lattice_fn, map_fn, allowed, patches.Capsule(r, h))
     return _build(family, n_triangles, max_edge)
 
 
@@ -726,7 +764,10 @@ def paraboloid(
         z[base] = big_l
         return np.column_stack([xy, z])
 
-    return _build(_Family("paraboloid", counts_fn, lattice_fn, map_fn), n_triangles, max_edge)
+    family = _Family(
+        "paraboloid", counts_fn, lattice_fn, map_fn, surface=patches.Paraboloid(big_r, big_l)
+    )
+    return _build(family, n_triangles, max_edge)
 
 
 def primitive(

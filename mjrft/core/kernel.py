@@ -32,7 +32,7 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
-from mjrft.core import agarwal, numba_cache, surface
+from mjrft.core import agarwal, numba_cache, quadrature, surface
 from mjrft.core.law import (
     F1_GAIN,
     F1_NORM,
@@ -210,6 +210,168 @@ def _scratch():
     return np.empty((15, CHUNK)), np.empty(CHUNK, np.int64)
 
 
+#: Columns of body_wrench's quadrature rows: point (3), normal (3), velocity (3), weight.
+ROW = 10
+#: Vertices a triangle clipped by two half-planes can have (5), rounded up.
+_POLY = 8
+
+
+@numba.njit(inline="always", **_JIT)
+def _clip(src, ns, dst, v0, v1, v2):
+    """Clip the polygon src[:ns] (barycentric points, rows) to where the linear function with
+    corner values v0, v1, v2 is >= 0 (Sutherland-Hodgman); writes dst, returns its count."""
+    nd = 0
+    for k in range(ns):
+        kb = k + 1 if k + 1 < ns else 0
+        fa = src[k, 0] * v0 + src[k, 1] * v1 + src[k, 2] * v2
+        fb = src[kb, 0] * v0 + src[kb, 1] * v1 + src[kb, 2] * v2
+        if fa >= 0.0:
+            dst[nd, :] = src[k, :]
+            nd += 1
+        if (fa >= 0.0) != (fb >= 0.0):
+            t = fa / (fa - fb)
+            for c in range(3):
+                dst[nd, c] = src[k, c] + (src[kb, c] - src[k, c]) * t
+            nd += 1
+    return nd
+
+
+@numba.njit(inline="always", **_JIT)
+def _clipped(poly, d, s, area):
+    """(W, l0, l1, l2): the integral W [m^3] of the depth over the part of a triangle of area
+    [m^2] where depth and lead are >= 0 (both linear, corner values d, s (3,)), and that part's
+    depth-weighted centroid in barycentric coordinates (W = 0: nothing acts).
+
+    The part is a polygon (fanned into triangles); on a triangle with corner depths da, db, dc
+    the integral of depth is A (da + db + dc) / 3 and that of depth times the barycentric
+    point l is A / 12 ((da + db + dc) (la + lb + lc) + da la + db lb + dc lc).
+    """
+    src, dst = poly[0], poly[1]
+    src[:, :] = 0.0
+    src[0, 0] = 1.0
+    src[1, 1] = 1.0
+    src[2, 2] = 1.0
+    n = _clip(src, 3, dst, d[0], d[1], d[2])
+    n = _clip(dst, n, src, s[0], s[1], s[2])
+    acc = dst[0]  # free after the second clip
+    acc[:] = 0.0
+    w = 0.0
+    for k in range(1, n - 1):
+        frac = abs(
+            (src[k, 1] - src[0, 1]) * (src[k + 1, 2] - src[0, 2])
+            - (src[k, 2] - src[0, 2]) * (src[k + 1, 1] - src[0, 1])
+        )
+        da = src[0, 0] * d[0] + src[0, 1] * d[1] + src[0, 2] * d[2]
+        db = src[k, 0] * d[0] + src[k, 1] * d[1] + src[k, 2] * d[2]
+        dc = src[k + 1, 0] * d[0] + src[k + 1, 1] * d[1] + src[k + 1, 2] * d[2]
+        a = frac * area
+        sd = da + db + dc
+        w += a * sd / 3.0
+        for c in range(3):
+            lc = src[0, c] + src[k, c] + src[k + 1, c]
+            acc[c] += a / 12.0 * (sd * lc + da * src[0, c] + db * src[k, c] + dc * src[k + 1, c])
+    if not w > 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    return w, acc[0] / w, acc[1] / w, acc[2] / w
+
+
+@numba.njit(inline="always", **_JIT)
+def _clip_element(patch, normal, i, area, depth0, band_r, poly, corner, rot, px, py, pz, omega,
+                  v_ref, p_ref, surface_prm, surface_grid, soil):  # fmt: skip
+    """The submerged, leading part of element i (mjrft.core.quadrature), its body at rot (3, 3)
+    body -> world, centroid at (px, py, pz) [m] and depth0 [m] there, its normal normal[i]
+    (body frame), moving with omega, v_ref at p_ref (world); band_r [m]: the clipping band.
+
+    Returns (W [m^3], x, y, z [m], nx, ny, nz, vx, vy, vz [m/s]): the depth integral over the
+    part, its depth-weighted centroid, the corner normals interpolated there (unit) and the
+    velocity there, blended into the one-point rule's values (below); W = 0 if no part acts.
+    corner (5, 3) and poly (2, _POLY, 3) are scratch.
+    """
+    flat = surface_prm[surface.KIND] == surface.FLAT
+    top = surface_prm[surface.Z0]
+    for j in range(3):
+        ox, oy, oz = patch[i, 3 * j], patch[i, 3 * j + 1], patch[i, 3 * j + 2]
+        x = px + rot[0, 0] * ox + rot[0, 1] * oy + rot[0, 2] * oz
+        y = py + rot[1, 0] * ox + rot[1, 1] * oy + rot[1, 2] * oz
+        z = pz + rot[2, 0] * ox + rot[2, 1] * oy + rot[2, 2] * oz
+        corner[j, 0], corner[j, 1], corner[j, 2] = x, y, z
+        corner[3, j] = top - z if flat else surface.depth(surface_prm, surface_grid, soil, x, y, z)
+    for j in range(3):
+        b = quadrature.PATCH_NORMAL + 3 * j
+        mx, my, mz = patch[i, b], patch[i, b + 1], patch[i, b + 2]
+        nx = rot[0, 0] * mx + rot[0, 1] * my + rot[0, 2] * mz
+        ny = rot[1, 0] * mx + rot[1, 1] * my + rot[1, 2] * mz
+        nz = rot[2, 0] * mx + rot[2, 1] * my + rot[2, 2] * mz
+        dx, dy, dz = corner[j, 0] - p_ref[0], corner[j, 1] - p_ref[1], corner[j, 2] - p_ref[2]
+        vx = v_ref[0] + omega[1] * dz - omega[2] * dy
+        vy = v_ref[1] + omega[2] * dx - omega[0] * dz
+        vz = v_ref[2] + omega[0] * dy - omega[1] * dx
+        corner[4, j] = nx * vx + ny * vy + nz * vz
+    d0, d1, d2 = corner[3, 0], corner[3, 1], corner[3, 2]
+    s0, s1, s2 = corner[4, 0], corner[4, 1], corner[4, 2]
+    sd = d0 + d1 + d2
+    if max(s0, s1, s2) < 0.0:  # trailing everywhere: nothing to clip
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if min(s0, s1, s2) > 0.0 and min(d0, d1, d2) > 0.0 and sd >= 3.0 * band_r:
+        # nothing clipped, beyond the band: the one-point rule's values (the blend below gives
+        # them to round-off); most elements the bounds send here, at the cost of the corners
+        mx, my, mz = normal[i, 0], normal[i, 1], normal[i, 2]
+        dx, dy, dz = px - p_ref[0], py - p_ref[1], pz - p_ref[2]
+        return (
+            area * depth0, px, py, pz,
+            rot[0, 0] * mx + rot[0, 1] * my + rot[0, 2] * mz,
+            rot[1, 0] * mx + rot[1, 1] * my + rot[1, 2] * mz,
+            rot[2, 0] * mx + rot[2, 1] * my + rot[2, 2] * mz,
+            v_ref[0] + omega[1] * dz - omega[2] * dy,
+            v_ref[1] + omega[2] * dx - omega[0] * dz,
+            v_ref[2] + omega[0] * dy - omega[1] * dx,
+        )  # fmt: skip
+    w, l0, l1, l2 = _clipped(poly, corner[3], corner[4], area)
+    if w == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # Continuity with the one-point rule: the whole triangle's integral (depth-weighted
+    # centroid l_j = (sum d + d_j) / (4 sum d), normal interpolated there, W = A mean d) is
+    # replaced by the element's own point, normal and A d_centroid, with a weight ramping from
+    # 0 at the surface to 1 at the band's edge, where an element leaves the clipped path: an
+    # element that nothing clips then gets exactly the one-point rule's force, and the force
+    # is continuous in the state (the implicit step differentiates it).
+    ramp = min(1.0, max(0.0, sd / (3.0 * band_r))) if band_r > 0.0 else 1.0
+    x = l0 * corner[0, 0] + l1 * corner[1, 0] + l2 * corner[2, 0]
+    y = l0 * corner[0, 1] + l1 * corner[1, 1] + l2 * corner[2, 1]
+    z = l0 * corner[0, 2] + l1 * corner[1, 2] + l2 * corner[2, 2]
+    b = quadrature.PATCH_NORMAL
+    mx = l0 * patch[i, b] + l1 * patch[i, b + 3] + l2 * patch[i, b + 6]
+    my = l0 * patch[i, b + 1] + l1 * patch[i, b + 4] + l2 * patch[i, b + 7]
+    mz = l0 * patch[i, b + 2] + l1 * patch[i, b + 5] + l2 * patch[i, b + 8]
+    if ramp > 0.0:
+        f0, f1, f2 = (sd + d0) / (4.0 * sd), (sd + d1) / (4.0 * sd), (sd + d2) / (4.0 * sd)
+        x += ramp * (px - (f0 * corner[0, 0] + f1 * corner[1, 0] + f2 * corner[2, 0]))
+        y += ramp * (py - (f0 * corner[0, 1] + f1 * corner[1, 1] + f2 * corner[2, 1]))
+        z += ramp * (pz - (f0 * corner[0, 2] + f1 * corner[1, 2] + f2 * corner[2, 2]))
+        mx += ramp * (
+            normal[i, 0] - (f0 * patch[i, b] + f1 * patch[i, b + 3] + f2 * patch[i, b + 6])
+        )
+        my += ramp * (
+            normal[i, 1] - (f0 * patch[i, b + 1] + f1 * patch[i, b + 4] + f2 * patch[i, b + 7])
+        )
+        mz += ramp * (
+            normal[i, 2] - (f0 * patch[i, b + 2] + f1 * patch[i, b + 5] + f2 * patch[i, b + 8])
+        )
+        w += ramp * area * (depth0 - sd / 3.0)
+        if not w > 0.0:
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    inv = 1.0 / math.sqrt(mx * mx + my * my + mz * mz)
+    mx, my, mz = mx * inv, my * inv, mz * inv
+    nx = rot[0, 0] * mx + rot[0, 1] * my + rot[0, 2] * mz
+    ny = rot[1, 0] * mx + rot[1, 1] * my + rot[1, 2] * mz
+    nz = rot[2, 0] * mx + rot[2, 1] * my + rot[2, 2] * mz
+    dx, dy, dz = x - p_ref[0], y - p_ref[1], z - p_ref[2]
+    vx = v_ref[0] + omega[1] * dz - omega[2] * dy
+    vy = v_ref[1] + omega[2] * dx - omega[0] * dz
+    vz = v_ref[2] + omega[0] * dy - omega[1] * dx
+    return w, x, y, z, nx, ny, nz, vx, vy, vz
+
+
 @numba.njit(inline="always", **_JIT)
 def _gather(buf, idx, k, i, nx, ny, nz, wx, wy, wz, depth, area, inside):
     """Write element i at slot k of the chunk; returns k + 1 if it acts (submerged, inside the
@@ -308,16 +470,19 @@ def input_flags(pos, normal, area, vel):
 @numba.njit(**_JIT)
 def body_wrench(
     # Model: the body's elements (body frame), then the medium
-    cent, norm, area, start, stop, co, ay, zeta, surface_prm, surface_grid, use_region, region,
+    cent, norm, area, reach, patch, start, stop,
+    co, ay, zeta, surface_prm, surface_grid, use_region, region,
     # Data in: the ground's state (a deforming surface's soil block), the body's pose and motion
     soil,
     rot, pos, omega, v_ref, p_ref, com,
     # Data out
-    wrench, elem_force,
+    wrench, elem_force, rows,
 ):  # fmt: skip
     """Add to wrench (6,) the RFT wrench on elements start..stop of a body; returns #acting.
 
-    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]. co: the
+    cent, norm (n, 3): body-frame centroids [m], unit normals; area (n,) [m^2]; reach (n,) [m]
+    and patch (n, quadrature.PATCH_SIZE) the quadrature's corner data (mjrft.core.quadrature:
+    elements the free surface or the leading boundary may cross are clipped). co: the
     model's coefficients (``forces``), ay the generic alpha_y, zeta [N/m^3]; surface_prm,
     surface_grid, soil the free surface (mjrft.core.surface; depth measured vertically; soil is
     read only by a deforming one); region (2, 3) world box of the medium, used if use_region.
@@ -325,8 +490,14 @@ def body_wrench(
     v_ref (3,) linear velocity [m/s] of the world point p_ref (3,) moving with the body; com
     (3,): point about which torque is taken [m]; all world frame.
     elem_force (n, 3): forces [N] are written for elements start..stop (zero where nothing acts).
+    rows (n, ROW) or (0, ROW): if not empty, the quadrature points are written there instead
+    of evaluated (for media given by Python callables): for each acting element, its point
+    [m], unit normal, velocity direction (any scale) and weight W = depth x area [m^3], world
+    frame; rows of the others are left as they are (the caller zeroes them).
     """
     buf, idx = _scratch()
+    poly = np.empty((2, _POLY, 3))
+    corner = np.empty((5, 3))
     # Flat views and scalar invariants: constant-stride loads and no reloads in the loop below
     # (measured: 2D indexing with runtime strides cost ~1.7x here).
     cf = np.ascontiguousarray(cent).reshape(-1)
@@ -341,6 +512,8 @@ def body_wrench(
     lo_x, lo_y, lo_z = region[0, 0], region[0, 1], region[0, 2]
     hi_x, hi_y, hi_z = region[1, 0], region[1, 1], region[1, 2]
     flat = surface_prm[surface.KIND] == surface.FLAT
+    band = quadrature.UNEVEN_REACH  # corner depths are within band * reach of the centroid's
+    spin = math.sqrt(wx * wx + wy * wy + wz * wz)
     top = surface.ceiling(surface_prm, soil)  # an element above it is dry wherever it is
     count = 0
     for c0 in range(start, stop, CHUNK):
@@ -354,28 +527,53 @@ def body_wrench(
             cx, cy, cz = cf[3 * i], cf[3 * i + 1], cf[3 * i + 2]
             pz = r20 * cx + r21 * cy + r22 * cz + oz
             depth = top - pz
-            if depth <= 0.0:
+            ri = reach[i]
+            if depth <= -band * ri:
                 continue
             px = r00 * cx + r01 * cy + r02 * cz + ox
             py = r10 * cx + r11 * cy + r12 * cz + oy
             if not flat:
                 depth = surface.depth(surface_prm, surface_grid, soil, px, py, pz)
-                if depth <= 0.0:
+                if depth <= -band * ri:
                     continue
             if use_region and (
                 px < lo_x or py < lo_y or pz < lo_z or px > hi_x or py > hi_y or pz > hi_z
             ):
                 continue
             mx, my, mz = nf[3 * i], nf[3 * i + 1], nf[3 * i + 2]
+            nx = r00 * mx + r01 * my + r02 * mz
+            ny = r10 * mx + r11 * my + r12 * mz
+            nz = r20 * mx + r21 * my + r22 * mz
             dx, dy, dz = px - qx, py - qy, pz - qz
+            vx = ux + wy * dz - wz * dy
+            vy = uy + wz * dx - wx * dz
+            vz = uz + wx * dy - wy * dx
+            lead = nx * vx + ny * vy + nz * vz
+            # n . v varies over the element by at most spread |v| + (1 + spread) |omega| reach
+            spread = patch[i, quadrature.PATCH_SPREAD]
+            vary = spread * math.sqrt(vx * vx + vy * vy + vz * vz) + (1.0 + spread) * spin * ri
+            wet = area[i]
+            if depth < band * ri or abs(lead) <= vary:
+                wet, px, py, pz, nx, ny, nz, vx, vy, vz = _clip_element(
+                    patch, norm, i, area[i], depth, band * ri, poly, corner, rot, px, py, pz,
+                    omega, v_ref, p_ref, surface_prm, surface_grid, soil,
+                )  # fmt: skip
+                if wet == 0.0:
+                    continue
+                depth = 1.0  # wet is the depth integral itself
             buf[12, k] = px
             buf[13, k] = py
             buf[14, k] = pz
-            k = _gather(
-                buf, idx, k, i, r00 * mx + r01 * my + r02 * mz, r10 * mx + r11 * my + r12 * mz,
-                r20 * mx + r21 * my + r22 * mz, ux + wy * dz - wz * dy, uy + wz * dx - wx * dz,
-                uz + wx * dy - wy * dx, depth, area[i], True,
-            )  # fmt: skip
+            k = _gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, wet, True)
+        if rows.shape[0] > 0:
+            for j in range(k):
+                for c in range(3):
+                    rows[idx[j], c] = buf[12 + c, j]
+                    rows[idx[j], 3 + c] = buf[c, j]
+                    rows[idx[j], 6 + c] = buf[5 + c, j]
+                rows[idx[j], 9] = buf[8, j]
+            count += k
+            continue
         _evaluate_model(buf, k, co, ay, zeta)
         for j in range(k):
             fx, fy, fz = buf[9, j], buf[10, j], buf[11, j]
@@ -454,21 +652,25 @@ def _first_bad_input(pos, normal, area, vel):
 
 
 @numba.njit(**_JIT)
-def trajectory(cent, norm, area, co, ay, zeta, surface_z, rot, pos, lin_vel, ang_vel, point, out):
+def trajectory(cent, norm, area, reach, patch, co, ay, zeta, surface_z, rot, pos, lin_vel,
+               ang_vel, point, out):  # fmt: skip
     """RFT wrenches of a body along a prescribed trajectory: out (T, 6) = force [N], moment
     [N m] about point[t], world frame, for T samples of rot (T, 3, 3) body -> world, pos (T, 3)
     body origin [m], lin_vel (T, 3) its velocity [m/s], ang_vel (T, 3) [rad/s]; the elements
-    cent, norm (n, 3), area (n,) in the body frame. One thread, no BLAS."""
+    cent, norm (n, 3), area (n,), reach (n,), patch (n, PATCH_SIZE) in the body frame
+    (body_wrench). One thread, no BLAS."""
     region = np.zeros((2, 3))
     prm = np.zeros(surface.PRM_SIZE)
     prm[surface.Z0] = surface_z
     grid = np.zeros((1, 1))
     scratch = np.empty((cent.shape[0], 3))
+    no_rows = np.empty((0, ROW))
     out[:] = 0.0
     for t in range(pos.shape[0]):
         body_wrench(
-            cent, norm, area, 0, cent.shape[0], co, ay, zeta, prm, grid, False, region, grid[0],
-            rot[t], pos[t], ang_vel[t], lin_vel[t], pos[t], point[t], out[t], scratch,
+            cent, norm, area, reach, patch, 0, cent.shape[0], co, ay, zeta, prm, grid, False,
+            region, grid[0],
+            rot[t], pos[t], ang_vel[t], lin_vel[t], pos[t], point[t], out[t], scratch, no_rows,
         )  # fmt: skip
 
 
@@ -478,13 +680,16 @@ def warm_up() -> None:
     one = np.array([[0.0, 0.0, -1.0]])
     out = np.zeros((1, 3))
     forces(one, one, np.ones(1), one, co, 0.1, 1.0, 0.0, out)
+    patch = np.zeros((1, quadrature.PATCH_SIZE))
     body_wrench(
-        one, one, np.ones(1), 0, 1, co, 0.1, 1.0, np.zeros(surface.PRM_SIZE), np.zeros((1, 1)),
+        one, one, np.ones(1), np.zeros(1), patch, 0, 1, co, 0.1, 1.0, np.zeros(surface.PRM_SIZE),
+        np.zeros((1, 1)),
         False, np.zeros((2, 3)), np.zeros(1),
         np.eye(3), np.zeros(3), np.zeros(3), np.ones(3), np.zeros(3), np.zeros(3),
-        np.zeros(6), out,
+        np.zeros(6), out, np.empty((0, ROW)),
     )  # fmt: skip
     checked_unit_normals(one, one, np.ones(1), one, out)
     input_flags(one, one, np.ones(1), one)
-    trajectory(one, one, np.ones(1), co, 0.1, 1.0, 0.0, np.eye(3)[None], np.zeros((1, 3)),
+    trajectory(one, one, np.ones(1), np.zeros(1), patch, co, 0.1, 1.0, 0.0, np.eye(3)[None],
+               np.zeros((1, 3)),
                np.ones((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 6)))  # fmt: skip

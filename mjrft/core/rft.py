@@ -132,6 +132,20 @@ def unit_normal_forces(
     return numpy_forces(pos, n_hat, area, vel, material, surface_z)
 
 
+def quadrature_forces(rows: np.ndarray, material: Material) -> np.ndarray:
+    """(n, 3) forces [N] at the quadrature points of ``kernel.body_wrench``'s rows (n, ROW):
+    point, unit normal, velocity, weight W = depth x area [m^3], world frame (W = 0: none)."""
+    at = rows[:, :3].copy()
+    at[:, 2] = -1.0  # depth 1 below a surface at 0: the weight stands for the area
+    w = np.ascontiguousarray(rows[:, 9])
+    f = unit_normal_forces(
+        at, np.ascontiguousarray(rows[:, 3:6]), w, np.ascontiguousarray(rows[:, 6:9]), material,
+        0.0,
+    )  # fmt: skip
+    f[w <= 0.0] = 0.0
+    return f
+
+
 def numpy_forces(
     pos: np.ndarray,
     n_hat: np.ndarray,

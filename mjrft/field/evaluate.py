@@ -69,11 +69,11 @@ def geom_wrench(m, d, g, omega, v_ref, p_ref, com, wrench, elem_force):
     stop = start + m.tgeom_elemnum[g]
     if m.material_key == 0:
         return kernel.body_wrench(
-            m.elem_pos, m.elem_normal, m.elem_area, start, stop,
+            m.elem_pos, m.elem_normal, m.elem_area, m.elem_reach, m.elem_patch, start, stop,
             m.coef, m.alpha_y, m.zeta, m.surface_prm, m.surface_grid, m.use_region != 0,
             m.region, d.userdata,
             d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com,
-            wrench, elem_force,
+            wrench, elem_force, np.empty((0, kernel.ROW)),
         )  # fmt: skip
     return _python_geom_wrench(
         m.material_key, start, stop, d.xmat[b], d.xpos[b], omega, v_ref, p_ref, com, wrench,

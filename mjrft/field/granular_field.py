@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft.core import surface
+from mjrft.core import kernel, surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.surface import Surface
@@ -49,8 +49,12 @@ class ElementState:
 
     Attributes:
       body: body id. index: (n,) element indices into the body's BodyElements.
-      pos: (n, 3) centroids [m]; normal: (n, 3) unit normals; area: (n,) [m^2];
-      vel: (n, 3) centroid velocities [m/s]; force: (n, 3) RFT forces [N].
+      pos: (n, 3) quadrature points [m]: the centroid, or for an element the free surface or
+        the leading boundary crosses, its submerged leading part's depth-weighted centroid
+        (mjrft.core.quadrature); normal: (n, 3) unit normals there; area: (n,) [m^2], for a
+        clipped element the area that gives its part's depth integral at that point's depth;
+        vel: (n, 3) velocities there [m/s]; force: (n, 3) RFT forces [N], the element law at
+        (pos, normal, area, vel) (``mjrft.element_forces``).
     """
 
     body: int
@@ -143,14 +147,20 @@ class GranularField:
                 "a material given by Python callables acts under the flat surface only "
                 "(mjrft:surface_z); this scene's surface is a tilted plane or a height field"
             )
-        fm = (
+        quad = [be.quadrature for be in self.bodies]
+        region = self.scene.region
+        tables = (
             np.concatenate([be.centroids for be in self.bodies]),
             np.concatenate([be.normals for be in self.bodies]),
             np.concatenate([be.areas for be in self.bodies]),
-        )
-        return python_material.register(
-            self, self.scene.material, fm, self.scene.surface_z, self.scene.region
-        )
+            np.concatenate([q[0] for q in quad]),
+            np.concatenate([q[1] for q in quad]),
+            np.zeros(18), 0.0, 0.0,  # the kernel's coefficients: unused, the callables act
+            self.scene.surface.prm, self.scene.surface.grid, region is not None,
+            np.zeros((2, 3)) if region is None else np.ascontiguousarray(region, dtype=float),
+            np.zeros(1),
+        )  # fmt: skip
+        return python_material.register(self, self.scene.material, tables)
 
     # ------------------------------------------------------------------ description
     @property
@@ -222,6 +232,7 @@ class GranularField:
             areas=be.areas,
             vertices=np.concatenate([es.vertices for es in sets]),
             faces=np.concatenate([es.faces + o for es, o in zip(sets, offsets, strict=True)]),
+            corner_normals=be.corner_normals,
         )
 
     # ------------------------------------------------------------------ per-MjData state
@@ -329,12 +340,37 @@ class GranularField:
         if self.region is not None:
             inside = np.all((pos >= self.region[0]) & (pos <= self.region[1]), axis=1)
             idx, pos = idx[inside], pos[inside]
+        normal, area = be.normals[idx] @ rot.T, be.areas[idx].copy()
         # cvel = [w, v] with v at the subtree CoM of the body's root (docs/design.md section 3).
         omega, v_ref = data.cvel[b, :3], data.cvel[b, 3:]
-        vel = v_ref + np.cross(omega, pos - data.subtree_com[self.model.body_rootid[b]])
-        return ElementState(
-            b, idx, pos, be.normals[idx] @ rot.T, be.areas[idx], vel, elem_force[idx].copy()
-        )
+        p_ref = data.subtree_com[self.model.body_rootid[b]]
+        rows = self._quadrature_rows(data, be, rot, omega, v_ref, p_ref)[idx]
+        # A clipped element acts at its submerged leading part's depth-weighted centroid, with
+        # the area that gives that part's depth integral W at that point's depth.
+        moved = (rows[:, 9] > 0.0) & np.any(rows[:, :3] != pos, axis=1)
+        fm, soil = self._tables.arrays, soil_block(data, self._tables.arrays.nsoil)
+        for j in np.flatnonzero(moved):
+            x, y, z = rows[j, :3]
+            depth = surface.depth(fm.surface_prm, fm.surface_grid, soil, x, y, z)
+            pos[j], normal[j], area[j] = rows[j, :3], rows[j, 3:6], rows[j, 9] / depth
+        vel = v_ref + np.cross(omega, pos - p_ref)
+        return ElementState(b, idx, pos, normal, area, vel, elem_force[idx].copy())
+
+    def _quadrature_rows(self, data, be: BodyElements, rot, omega, v_ref, p_ref) -> np.ndarray:
+        """The kernel's quadrature rows (n, kernel.ROW) of every element of a body."""
+        fm = self._tables.arrays
+        k = int(np.flatnonzero(self.body_ids == be.body)[0])
+        start = int(fm.tgeom_elemadr[fm.tbody_geomadr[k]])
+        n = len(be.areas)
+        rows = np.zeros((fm.elem_area.shape[0], kernel.ROW))
+        kernel.body_wrench(
+            fm.elem_pos, fm.elem_normal, fm.elem_area, fm.elem_reach, fm.elem_patch, start,
+            start + n, fm.coef, fm.alpha_y, fm.zeta, fm.surface_prm, fm.surface_grid,
+            bool(fm.use_region), fm.region, soil_block(data, fm.nsoil), rot.copy(),
+            data.xpos[be.body].copy(), omega.copy(), v_ref.copy(), p_ref.copy(),
+            data.xipos[be.body].copy(), np.zeros(6), np.zeros((rows.shape[0], 3)), rows,
+        )  # fmt: skip
+        return rows[start : start + n]
 
     def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
         """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""

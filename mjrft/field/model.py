@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mjrft.core import surface
+from mjrft.core import quadrature, surface
 from mjrft.core.elements import ElementSet
 from mjrft.field import layout, lowspeed
 from mjrft.field.scene import Intruder, Scene, geom_elements
@@ -29,6 +29,7 @@ class BodyElements:
       geoms: (k,) tagged geom ids; segments: (k + 1,) element offsets of each geom's block.
       corners: (n, 9) each triangle's three vertices [m], body frame, counter-clockwise seen
         from outside (the deforming ground rasterises them: mjrft.core.soil).
+      corner_normals: (n, 3, 3) unit normals at those vertices, body frame.
     """
 
     body: int
@@ -39,6 +40,14 @@ class BodyElements:
     geoms: np.ndarray
     segments: np.ndarray
     corners: np.ndarray
+    corner_normals: np.ndarray
+
+    @property
+    def quadrature(self) -> tuple[np.ndarray, np.ndarray]:
+        """(reach (n,) [m], patch (n, PATCH_SIZE)) of mjrft.core.quadrature, body frame."""
+        return quadrature.patch_table(
+            self.centroids, self.corners.reshape(-1, 3, 3), self.normals, self.corner_normals
+        )
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -74,6 +83,7 @@ def body_elements(
                 geoms=np.array([intr.geom for intr, _ in items], dtype=np.int64),
                 segments=np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
                 corners=np.concatenate([es.vertices[es.faces].reshape(-1, 9) for _, es in items]),
+                corner_normals=np.concatenate([es.corner_normals for _, es in items]),
             )
         )
     return tuple(bodies), geoms
@@ -272,6 +282,8 @@ def build_tables(
         soil=int(soil),
         nsoil=surface.soil_block(*scene.surface.grid.shape) if soil else 1,
         elem_vert=f64(np.concatenate([be.corners for be in bodies]) if soil else np.zeros((1, 9))),
+        elem_reach=f64(np.concatenate([be.quadrature[0] for be in bodies])),
+        elem_patch=f64(np.concatenate([be.quadrature[1] for be in bodies])),
     )
     nrow, ncol = scene.surface.grid.shape
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),

@@ -299,7 +299,7 @@ def scene_from_model(
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")
     if tolerance is not None:
-        n_triangles = geometry.triangles_for_tolerance(tolerance)
+        geometry.triangles_for_tolerance(tolerance)  # checks it (ValueError) before the scene
     if n_triangles is not None and (
         not isinstance(n_triangles, int | np.integer) or n_triangles < geometry.MIN_TRIANGLES
     ):
@@ -342,11 +342,17 @@ def scene_from_model(
     cap = geometry.MAX_TRIANGLES if cap is None else int(cap[0])
     intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol, cap)
     _warn_if_suspicious(model, intruders)
-    if n_triangles is not None:
+    if n_triangles is not None or tolerance is not None:
         intruders = tuple(
             i
             if i.kind == "mesh"
-            else dataclasses.replace(i, n_triangles=int(n_triangles), tolerance=tolerance)
+            else dataclasses.replace(
+                i,
+                n_triangles=int(n_triangles)
+                if tolerance is None
+                else geometry.triangles_for_tolerance(tolerance, i.kind, model.geom_size[i.geom]),
+                tolerance=tolerance,
+            )
             for i in intruders
         )
     return Scene(
@@ -644,12 +650,19 @@ def _intruders(
                 f"cannot mesh; supported: {', '.join(SUPPORTED_GEOM_TYPES.values())}"
             )
         tol = default_tol if prm == 0 else None
+        rule = kind if kind in geometry.TOLERANCE_RULES else None
+        size = model.geom_size[g]
         if 0 < prm < 1:  # a relative force tolerance for this geom
             tol = prm
             try:
-                prm = geometry.triangles_for_tolerance(prm)
+                prm = geometry.triangles_for_tolerance(prm, rule, size)
             except ValueError as exc:
                 raise SceneError(f"geom '{name}': prm={tol:g}: {exc}") from None
+        elif prm == 0 and tol is not None and rule is not None:  # the scene's, by type
+            try:
+                prm = geometry.triangles_for_tolerance(tol, rule, size)
+            except ValueError as exc:
+                raise SceneError(f"geom '{name}': tolerance {tol:g}: {exc}") from None
         elif prm < 0 or prm != int(prm) or (0 < prm < geometry.MIN_TRIANGLES):
             raise SceneError(
                 f"geom '{name}': prm={prm:g} must be 0 (default), a tolerance in (0, 1) or an "

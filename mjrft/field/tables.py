@@ -28,6 +28,7 @@ import numpy as np
 from numba import types
 from numba.extending import intrinsic
 
+from mjrft.core.quadrature import PATCH_SIZE
 from mjrft.core.soil import N_SOIL_STATS
 from mjrft.core.surface import PRM_SIZE
 
@@ -110,6 +111,8 @@ class FieldModel(NamedTuple):
     soil: int  # 1 if the surface deforms (kind SOIL: mjrft.core.soil)
     nsoil: int  # size of the soil block (surface.soil_block; 1 if the surface does not deform)
     elem_vert: np.ndarray  # (nelem, 9) triangle vertices, body frame [m] (soil; else (1, 9))
+    elem_reach: np.ndarray  # (nelem,) largest centroid-corner distance [m] (core.quadrature)
+    elem_patch: np.ndarray  # (nelem, quadrature.PATCH_SIZE) corner data, body frame
 
 
 class MjDataArrays(NamedTuple):
@@ -307,7 +310,7 @@ def unpack_model(address):
         _f(t.actuator_biasprm, (t.nu, 10)), _f(t.actuator_ctrlrange, (t.nu, 2)),
         _f(t.actuator_forcerange, (t.nu, 2)), _f(t.surface_prm, PRM_SIZE),
         _f(t.surface_grid, (t.surface_nrow, t.surface_ncol)), t.soil, t.nsoil,
-        _f(t.elem_vert, (nvert, 9)),
+        _f(t.elem_vert, (nvert, 9)), _f(t.elem_reach, ne), _f(t.elem_patch, (ne, PATCH_SIZE)),
     )  # fmt: skip
 
 
