@@ -362,15 +362,16 @@ class GranularField:
         k = int(np.flatnonzero(self.body_ids == be.body)[0])
         start = int(fm.tgeom_elemadr[fm.tbody_geomadr[k]])
         n = len(be.areas)
-        rows = np.zeros((fm.elem_area.shape[0], kernel.ROW))
+        b = slice(start, start + n)  # the body's block alone: rows and scratch sized to it
+        rows = np.zeros((n, kernel.ROW))
         kernel.body_wrench(
-            fm.elem_pos, fm.elem_normal, fm.elem_area, fm.elem_reach, fm.elem_patch, start,
-            start + n, fm.coef, fm.alpha_y, fm.zeta, fm.surface_prm, fm.surface_grid,
-            bool(fm.use_region), fm.region, soil_block(data, fm.nsoil), rot.copy(),
-            data.xpos[be.body].copy(), omega.copy(), v_ref.copy(), p_ref.copy(),
-            data.xipos[be.body].copy(), np.zeros(6), np.zeros((rows.shape[0], 3)), rows,
+            fm.elem_pos[b], fm.elem_normal[b], fm.elem_area[b], fm.elem_reach[b],
+            fm.elem_patch[b], 0, n, fm.coef, fm.alpha_y, fm.zeta, fm.surface_prm,
+            fm.surface_grid, bool(fm.use_region), fm.region, soil_block(data, fm.nsoil),
+            rot.copy(), data.xpos[be.body].copy(), omega.copy(), v_ref.copy(), p_ref.copy(),
+            data.xipos[be.body].copy(), np.zeros(6), np.zeros((n, 3)), rows,
         )  # fmt: skip
-        return rows[start : start + n]
+        return rows
 
     def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
         """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""

@@ -51,14 +51,13 @@ def geom_wrench(key, start, stop, rot, pos, omega, v_ref, p_ref, com, wrench, el
     Elements outside the region feel nothing. Returns the number of elements that felt a force.
     """
     material, tables = _registry[key]
-    n = tables[0].shape[0]
-    rows = np.zeros((n, kernel.ROW))
-    kernel.body_wrench(
-        *tables[:5], int(start), int(stop), *tables[5:], rot, pos, omega, v_ref, p_ref, com,
-        np.zeros(6), elem_force, rows,
-    )  # fmt: skip
     sl = slice(int(start), int(stop))
-    r = rows[sl]
+    m = sl.stop - sl.start
+    r = np.zeros((m, kernel.ROW))  # the geom's block alone: rows sized to it, not the field
+    kernel.body_wrench(
+        *(a[sl] for a in tables[:5]), 0, m, *tables[5:], rot, pos, omega, v_ref, p_ref, com,
+        np.zeros(6), elem_force[sl], r,
+    )  # fmt: skip
     f = quadrature_forces(r, material)
     elem_force[sl] = f
     wrench[:3] += f.sum(axis=0)
