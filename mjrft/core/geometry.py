@@ -78,16 +78,17 @@ PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 #: Accuracy knob, per primitive type: n = max(TOLERANCE_FLOOR, ceil((C / tol) ** (1 / p)))
 #: triangles for a relative RMS force tolerance tol, (C, p) = TOLERANCE_RULES[type]. Fitted in
 #: benchmarks/pareto.py (benchmarks/RESULTS.md, "Speed vs accuracy"; docs/accuracy.md): p is
-#: the smallest order fitted on the type's cases (clipped to [0.8, 1]) and C twice the envelope
-#: of their measured errors from 200 triangles up; checked there and in tests/test_tolerance.py
+#: the smallest order fitted on the type's cases (clipped to [0.8, 1]; rounded down to two
+#: decimals) and C twice the envelope of their measured errors from 200 triangles up (rounded
+#: up to two digits); checked there and in tests/test_tolerance.py
 #: on shapes and motions not used in the fit (tumbling about an oblique axis, grazing, slender,
 #: flat and disc-like shapes).
 TOLERANCE_RULES = {
-    "sphere": (1.2, 0.84),
-    "ellipsoid": (8.0, 1.0),
-    "capsule": (0.89, 0.8),
-    "cylinder": (0.88, 0.92),
-    "box": (0.4, 0.8),
+    "sphere": (0.87, 0.81),
+    "ellipsoid": (3.9, 0.92),
+    "capsule": (0.91, 0.8),
+    "cylinder": (0.5, 0.86),
+    "box": (0.36, 0.8),
 }
 TOLERANCE_FLOOR = 200  # below ~200 triangles errors are not yet asymptotic (a slender tip)
 #: Aspect ratio (longest over shortest extent, ``aspect_ratio``) of the shape each rule was

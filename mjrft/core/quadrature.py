@@ -8,11 +8,14 @@ n . v interpolated linearly from the corners (depth is exactly linear on a flat 
 under a level surface, and n . v is to O(h^2)), and evaluates the force at that part's
 depth-weighted centroid with the normal interpolated there (docs/accuracy.md, "Quadrature").
 
-Which elements need it is decided from two bounds per element, so that the others cost one
-comparison more than a one-point rule: ``reach``, the largest distance from the centroid to a
-corner (the depth of a corner differs from the centroid's by at most reach under a level
-surface), and ``spread``, the largest distance between the element's normal and a corner
-normal (0 for a flat facet), which bounds how much n . v varies over it.
+Which elements need it is decided in two steps, so that the others cost one comparison more
+than a one-point rule. First two bounds per element: ``reach``, the largest distance from the
+centroid to a corner (the depth of a corner differs from the centroid's by at most reach under
+a level surface), and ``spread``, the largest distance between the element's normal and a
+corner normal (0 for a flat facet); n . v differs from the centroid's by at most
+spread |v| + |omega| reach over the element. The elements these bounds cannot clear are then
+tested exactly, from their corner depths and corner n . v, and only those the surface or the
+leading boundary crosses, or within the band (``UNEVEN_REACH``), are clipped.
 """
 
 from __future__ import annotations
