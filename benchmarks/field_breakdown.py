@@ -87,6 +87,7 @@ def wrench_two_threads(args, start, stop, wrench, elem_force):
                 *args[7:],
                 partial[p],
                 elem_force,
+                np.empty((0, _kernel.ROW)),
             )
     for p in range(parts):
         for c in range(6):
@@ -98,7 +99,7 @@ def wrench_two_threads(args, start, stop, wrench, elem_force):
 def _loop_two(reps, args, wrench, elem_force):
     s = 0
     for _ in range(reps):
-        s += wrench_two_threads(args, args[3], args[4], wrench, elem_force)
+        s += wrench_two_threads(args, args[5], args[6], wrench, elem_force)
     return s
 
 

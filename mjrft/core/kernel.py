@@ -286,6 +286,58 @@ def _clipped(poly, d0, d1, d2, s0, s1, s2, area):
     return w, acc[0] * q, acc[1] * q, acc[2] * q
 
 
+@numba.njit(inline="always", **_JIT)
+def _corner_cut(da, db, dc, fa, fb, fc, area):
+    """(W, Ma, Mb, Mc): the integral W [m^3] of the depth over the corner a of a triangle of
+    area [m^2] that the line f = 0 cuts off (f linear, fa on one side, fb and fc on the other;
+    depth corner values da, db, dc), and W times that corner's depth-weighted centroid in the
+    triangle's barycentric coordinates (a, b, c).
+
+    The corner is the triangle a, a + t1 (b - a), a + t2 (c - a), t1 = fa / (fa - fb), t2 =
+    fa / (fa - fc), of area t1 t2 A; on it the formulas of ``_clipped``.
+    """
+    t1 = fa / (fa - fb)
+    t2 = fa / (fa - fc)
+    e1 = da + t1 * (db - da)
+    e2 = da + t2 * (dc - da)
+    a = area * t1 * t2
+    s = da + e1 + e2
+    k = a / 12.0
+    ma = k * (s * (3.0 - t1 - t2) + da + e1 * (1.0 - t1) + e2 * (1.0 - t2))
+    return a * s / 3.0, ma, k * t1 * (s + e1), k * t2 * (s + e2)
+
+
+@numba.njit(inline="always", **_JIT)
+def _cut(d0, d1, d2, f0, f1, f2, area):
+    """(W, l0, l1, l2) as ``_clipped``, for the part of a triangle where the linear f >= 0
+    (corner values f0-f2) and the depth (corner values d0-d2) is positive everywhere on it:
+    one line crosses the triangle, so the part is the corner it cuts off (``_corner_cut``)
+    or the triangle less that corner, in closed form."""
+    i0, i1, i2 = f0 >= 0.0, f1 >= 0.0, f2 >= 0.0
+    n = int(i0) + int(i1) + int(i2)
+    sd = d0 + d1 + d2
+    if n == 0:
+        return 0.0, 0.0, 0.0, 0.0
+    if n == 3:
+        q = 1.0 / (4.0 * sd)
+        return area * sd / 3.0, (sd + d0) * q, (sd + d1) * q, (sd + d2) * q
+    # The odd corner is the one inside alone (n == 1) or outside alone (n == 2).
+    if i0 == (n == 1):
+        w, m0, m1, m2 = _corner_cut(d0, d1, d2, f0, f1, f2, area)
+    elif i1 == (n == 1):
+        w, m1, m2, m0 = _corner_cut(d1, d2, d0, f1, f2, f0, area)
+    else:
+        w, m2, m0, m1 = _corner_cut(d2, d0, d1, f2, f0, f1, area)
+    if n == 2:
+        k = area / 12.0
+        w = area * sd / 3.0 - w
+        m0, m1, m2 = k * (sd + d0) - m0, k * (sd + d1) - m1, k * (sd + d2) - m2
+    if not w > 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    q = 1.0 / w
+    return w, m0 * q, m1 * q, m2 * q
+
+
 #: Rows of body_wrench's held scratch, for the elements whose corners are tested after a
 #: chunk's one-point pass: depth at the centroid [m]; point (3) [m], normal (3) and velocity
 #: (3) [m/s] of the one-point rule (world frame); corner depths (3) [m]; corner n . v (3).
@@ -445,7 +497,12 @@ def _clip_held(j, i, held, patch, normal, area, band_r, poly, rot, omega, v_ref,
         q = 1.0 / (4.0 * sd)
         w, l0, l1, l2 = area * sd / 3.0, (sd + d0) * q, (sd + d1) * q, (sd + d2) * q
     else:
-        w, l0, l1, l2 = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
+        if d0 > 0.0 and d1 > 0.0 and d2 > 0.0:  # only the leading boundary crosses it
+            w, l0, l1, l2 = _cut(d0, d1, d2, s0, s1, s2, area)
+        elif s0 > 0.0 and s1 > 0.0 and s2 > 0.0:  # only the free surface
+            w, l0, l1, l2 = _cut(d0, d1, d2, d0, d1, d2, area)
+        else:
+            w, l0, l1, l2 = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
         if w == 0.0:
             return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     return _blend(
