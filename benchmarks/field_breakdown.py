@@ -8,6 +8,8 @@ field to t = T (default 10 s: deep in the medium). Medians over repeats, all in 
   field      an mj_step with the installed field, called from Python
   native     mjrft.field.passive.step alone (the field's whole pass), in a numba loop
   wrench     mjrft.core.kernel.body_wrench over the ellipsoid alone, in a numba loop
+  one_point  the same with the quadrature's bounds zeroed (elem_reach and the patches' spread):
+             the one-point rule on the same elements, nothing tested or clipped
   acting     mjrft.core.kernel.forces over the acting triangles only, from precomputed world-frame
              positions, normals and velocities: the evaluation every pipeline pays at this
              precision, whatever its bookkeeping (a lower bound on the field's cost)
@@ -32,6 +34,7 @@ from field_overhead import MODELS, OUT, state_at, time_pairs
 
 from mjrft import simulate
 from mjrft.core import kernel as _kernel
+from mjrft.core import quadrature
 from mjrft.field import GranularField, passive
 
 REPEATS = 9
@@ -169,6 +172,10 @@ def main() -> None:
             passive.INSTALLED,
         )  # fmt: skip
     rows["wrench"] = _median_us(_loop_wrench, wargs, np.zeros(6), e1)
+    patch = fm.elem_patch.copy()
+    patch[:, quadrature.PATCH_SPREAD] = 0.0
+    one_point = (*wargs[:3], np.zeros_like(fm.elem_reach), patch, *wargs[5:])
+    rows["one_point"] = _median_us(_loop_wrench, one_point, np.zeros(6), np.zeros((n_el, 3)))
     rows["acting"] = _median_us(
         _loop_forces, pos, nrm, area, vel, fm.coef, fm.alpha_y, fm.zeta, fm.surface_z, out
     )

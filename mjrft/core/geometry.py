@@ -82,12 +82,14 @@ PRIMITIVE_KINDS = ("sphere", "ellipsoid", "capsule", "cylinder", "box")
 #: decimals) and C twice the envelope of their measured errors from 200 triangles up (rounded
 #: up to two digits); checked there and in tests/test_tolerance.py
 #: on shapes and motions not used in the fit (tumbling about an oblique axis, grazing, slender,
-#: flat and disc-like shapes).
+#: flat and disc-like shapes). The cylinder keeps an earlier, more conservative fit: the re-fit's
+#: (0.5, 0.86) asked 384 triangles at 0.3 %, where a held-out short cylinder (10 x 5 mm)
+#: tumbling reached 0.316 %.
 TOLERANCE_RULES = {
     "sphere": (0.87, 0.81),
     "ellipsoid": (3.9, 0.92),
     "capsule": (0.91, 0.8),
-    "cylinder": (0.5, 0.86),
+    "cylinder": (0.88, 0.92),
     "box": (0.36, 0.8),
 }
 TOLERANCE_FLOOR = 200  # below ~200 triangles errors are not yet asymptotic (a slender tip)
