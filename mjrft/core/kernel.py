@@ -491,20 +491,14 @@ def _clip_held(j, i, held, patch, normal, area, band_r, poly, rot, omega, v_ref,
     one-point rule (_blend); W = 0: nothing acts. World frame."""
     d0, d1, d2 = held[_HELD_D, j], held[_HELD_D + 1, j], held[_HELD_D + 2, j]
     s0, s1, s2 = held[_HELD_S, j], held[_HELD_S + 1, j], held[_HELD_S + 2, j]
-    if s0 > 0.0 and s1 > 0.0 and s2 > 0.0 and d0 > 0.0 and d1 > 0.0 and d2 > 0.0:
-        # the whole triangle acts: W = A mean d, at l_j = (sum d + d_j) / (4 sum d)
-        sd = d0 + d1 + d2
-        q = 1.0 / (4.0 * sd)
-        w, l0, l1, l2 = area * sd / 3.0, (sd + d0) * q, (sd + d1) * q, (sd + d2) * q
+    if d0 > 0.0 and d1 > 0.0 and d2 > 0.0:  # the whole triangle, or the leading boundary cuts it
+        w, l0, l1, l2 = _cut(d0, d1, d2, s0, s1, s2, area)
+    elif s0 > 0.0 and s1 > 0.0 and s2 > 0.0:  # only the free surface cuts it
+        w, l0, l1, l2 = _cut(d0, d1, d2, d0, d1, d2, area)
     else:
-        if d0 > 0.0 and d1 > 0.0 and d2 > 0.0:  # only the leading boundary crosses it
-            w, l0, l1, l2 = _cut(d0, d1, d2, s0, s1, s2, area)
-        elif s0 > 0.0 and s1 > 0.0 and s2 > 0.0:  # only the free surface
-            w, l0, l1, l2 = _cut(d0, d1, d2, d0, d1, d2, area)
-        else:
-            w, l0, l1, l2 = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
-        if w == 0.0:
-            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        w, l0, l1, l2 = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
+    if w == 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     return _blend(
         patch, normal, i, area, held[_HELD_DEPTH, j], band_r, d0, d1, d2, w, l0, l1, l2, rot,
         held[_HELD_POINT, j], held[_HELD_POINT + 1, j], held[_HELD_POINT + 2, j], omega, v_ref,
