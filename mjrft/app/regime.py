@@ -83,13 +83,17 @@ class FroudeWatch:
             if froude[k] > FROUDE_QUASI_STATIC and not self._warned:
                 self._warned = True
                 speed = math.sqrt(float(v[k] @ v[k]))
+                inertia = (
+                    "the dynamic term (mjrft:dynamic) adds the grains' inertia at leading faces"
+                    if self.fld.material.dynamic > 0.0
+                    else "the grains' inertia is left out (mjrft:dynamic adds a dynamic term)"
+                )
                 warnings.warn(
                     f"body {name!r} moves through the medium at {speed:.3g} m/s at t = "
                     f"{time:.4g} s: Froude number v^2/(g L) = {froude[k]:.3g} (L = "
                     f"{self.sizes[k]:.3g} m) > {FROUDE_QUASI_STATIC:g}, beyond the quasi-static "
-                    "regime RFT describes: the grains' inertia is left out (mjrft.app.regime; "
-                    "said once per run; each body's largest is in Recording.max_froude and "
-                    "mjrft run's run.json)",
+                    f"regime RFT describes: {inertia} (mjrft.app.regime; said once per run; "
+                    "each body's largest is in Recording.max_froude and mjrft run's run.json)",
                     QuasiStaticWarning,
                     stacklevel=3,
                 )

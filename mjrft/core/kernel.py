@@ -87,6 +87,10 @@ _INV_TERMS = 7
 _W2_MIN, _W2_MAX = 1e-60, 1e60
 #: In-plane speed |v23| below this counts as zero (gamma = 0): f23 there is below 1e-99.
 _VN_MIN = 1e-100
+#: Length of the treers2021 model's coefficients (``Material.kernel_coefficients``). A model's
+#: coefficients with one more entry carry the dynamic (inertial) term's lambda rho_c [kg/m^3]
+#: last (``_dynamic``); the length is how the kernel knows, so the default costs no argument.
+N_COMBINED = 18
 
 
 @intrinsic
@@ -202,16 +206,39 @@ def _evaluate(buf, k, co, ay, zeta):
 def _evaluate_model(buf, k, co, ay, zeta):
     """The force model the coefficients are for: Treers et al. 2021 (18 combined Fourier
     coefficients, ``_evaluate``) or Agarwal et al. 2023 (``agarwal.SIZE`` parameters)."""
-    if co.shape[0] == agarwal.SIZE:
+    if co.shape[0] == agarwal.SIZE or co.shape[0] == agarwal.SIZE + 1:
         agarwal.evaluate(buf, k, co)
     else:
         _evaluate(buf, k, co, ay, zeta)
 
 
+@numba.njit(inline="always", **_JIT)
+def dynamic_coefficient(co):
+    """lambda rho_c [kg/m^3] of the dynamic term the coefficients carry, 0.0 if none."""
+    n = co.shape[0]
+    return co[n - 1] if n == N_COMBINED + 1 or n == agarwal.SIZE + 1 else 0.0
+
+
+@numba.njit(inline="always", **_JIT)
+def _dynamic(buf, j, lam_rho, area, vx, vy, vz):
+    """Add the dynamic RFT inertial term to the force (rows 9-11) of gathered element j:
+    -lambda rho_c (n . v)^2 A n on its acting part of area A [m^2], unit normal n (rows 0-2),
+    moving at v [m/s]; world frame. The momentum flux of the grains a leading face sets moving
+    at its normal speed (docs/models.md, "Dynamic RFT"): F . v = -lambda rho_c (n . v)^3 A <= 0.
+    """
+    nx, ny, nz = buf[0, j], buf[1, j], buf[2, j]
+    vn = max(0.0, nx * vx + ny * vy + nz * vz)
+    g = lam_rho * area * vn * vn
+    buf[9, j] -= g * nx
+    buf[10, j] -= g * ny
+    buf[11, j] -= g * nz
+
+
 @numba.njit(**_JIT)
 def _scratch():
-    """Per-chunk scratch: rows 0-11 for _evaluate, 12-14 for body_wrench's element positions."""
-    return np.empty((15, CHUNK)), np.empty(CHUNK, np.int64)
+    """Per-chunk scratch: rows 0-11 for _evaluate, 12-14 for the element positions and 15 for
+    the acting areas (body_wrench; the area only with the dynamic term)."""
+    return np.empty((16, CHUNK)), np.empty(CHUNK, np.int64)
 
 
 #: Columns of body_wrench's quadrature rows: point (3), normal (3), velocity (3), weight.
@@ -244,9 +271,10 @@ def _clip(src, ns, dst, v0, v1, v2):
 
 @numba.njit(inline="always", **_JIT)
 def _clipped(poly, d0, d1, d2, s0, s1, s2, area):
-    """(W, l0, l1, l2): the integral W [m^3] of the depth over the part of a triangle of area
-    [m^2] where depth and lead are >= 0 (both linear, corner values d0-d2, s0-s2), and that part's
-    depth-weighted centroid in barycentric coordinates (W = 0: nothing acts).
+    """(W, l0, l1, l2, a): the integral W [m^3] of the depth over the part of a triangle of area
+    [m^2] where depth and lead are >= 0 (both linear, corner values d0-d2, s0-s2), that part's
+    depth-weighted centroid in barycentric coordinates and its area a [m^2] (W = 0: nothing
+    acts).
 
     The part is a polygon (fanned into triangles); on a triangle with corner depths da, db, dc
     the integral of depth is A (da + db + dc) / 3 and that of depth times the barycentric
@@ -266,6 +294,7 @@ def _clipped(poly, d0, d1, d2, s0, s1, s2, area):
     acc[1] = 0.0
     acc[2] = 0.0
     w = 0.0
+    wet = 0.0
     for k in range(1, n - 1):
         frac = abs(
             (src[k, 1] - src[0, 1]) * (src[k + 1, 2] - src[0, 2])
@@ -277,21 +306,22 @@ def _clipped(poly, d0, d1, d2, s0, s1, s2, area):
         a = frac * area
         sd = da + db + dc
         w += a * sd / 3.0
+        wet += a
         for c in range(3):
             lc = src[0, c] + src[k, c] + src[k + 1, c]
             acc[c] += a / 12.0 * (sd * lc + da * src[0, c] + db * src[k, c] + dc * src[k + 1, c])
     if not w > 0.0:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     q = 1.0 / w
-    return w, acc[0] * q, acc[1] * q, acc[2] * q
+    return w, acc[0] * q, acc[1] * q, acc[2] * q, wet
 
 
 @numba.njit(inline="always", **_JIT)
 def _corner_cut(da, db, dc, fa, fb, fc, area):
-    """(W, Ma, Mb, Mc): the integral W [m^3] of the depth over the corner a of a triangle of
+    """(W, Ma, Mb, Mc, a): the integral W [m^3] of the depth over the corner a of a triangle of
     area [m^2] that the line f = 0 cuts off (f linear, fa on one side, fb and fc on the other;
-    depth corner values da, db, dc), and W times that corner's depth-weighted centroid in the
-    triangle's barycentric coordinates (a, b, c).
+    depth corner values da, db, dc), W times that corner's depth-weighted centroid in the
+    triangle's barycentric coordinates (a, b, c), and the corner's area a [m^2].
 
     The corner is the triangle a, a + t1 (b - a), a + t2 (c - a), t1 = fa / (fa - fb), t2 =
     fa / (fa - fc), of area t1 t2 A; on it the formulas of ``_clipped``.
@@ -304,12 +334,12 @@ def _corner_cut(da, db, dc, fa, fb, fc, area):
     s = da + e1 + e2
     k = a / 12.0
     ma = k * (s * (3.0 - t1 - t2) + da + e1 * (1.0 - t1) + e2 * (1.0 - t2))
-    return a * s / 3.0, ma, k * t1 * (s + e1), k * t2 * (s + e2)
+    return a * s / 3.0, ma, k * t1 * (s + e1), k * t2 * (s + e2), a
 
 
 @numba.njit(inline="always", **_JIT)
 def _cut(d0, d1, d2, f0, f1, f2, area):
-    """(W, l0, l1, l2) as ``_clipped``, for the part of a triangle where the linear f >= 0
+    """(W, l0, l1, l2, a) as ``_clipped``, for the part of a triangle where the linear f >= 0
     (corner values f0-f2) and the depth (corner values d0-d2) is positive everywhere on it:
     one line crosses the triangle, so the part is the corner it cuts off (``_corner_cut``)
     or the triangle less that corner, in closed form."""
@@ -317,25 +347,26 @@ def _cut(d0, d1, d2, f0, f1, f2, area):
     n = int(i0) + int(i1) + int(i2)
     sd = d0 + d1 + d2
     if n == 0:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     if n == 3:
         q = 1.0 / (4.0 * sd)
-        return area * sd / 3.0, (sd + d0) * q, (sd + d1) * q, (sd + d2) * q
+        return area * sd / 3.0, (sd + d0) * q, (sd + d1) * q, (sd + d2) * q, area
     # The odd corner is the one inside alone (n == 1) or outside alone (n == 2).
     if i0 == (n == 1):
-        w, m0, m1, m2 = _corner_cut(d0, d1, d2, f0, f1, f2, area)
+        w, m0, m1, m2, a = _corner_cut(d0, d1, d2, f0, f1, f2, area)
     elif i1 == (n == 1):
-        w, m1, m2, m0 = _corner_cut(d1, d2, d0, f1, f2, f0, area)
+        w, m1, m2, m0, a = _corner_cut(d1, d2, d0, f1, f2, f0, area)
     else:
-        w, m2, m0, m1 = _corner_cut(d2, d0, d1, f2, f0, f1, area)
+        w, m2, m0, m1, a = _corner_cut(d2, d0, d1, f2, f0, f1, area)
     if n == 2:
         k = area / 12.0
         w = area * sd / 3.0 - w
+        a = area - a
         m0, m1, m2 = k * (sd + d0) - m0, k * (sd + d1) - m1, k * (sd + d2) - m2
     if not w > 0.0:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     q = 1.0 / w
-    return w, m0 * q, m1 * q, m2 * q
+    return w, m0 * q, m1 * q, m2 * q, a
 
 
 #: Rows of body_wrench's held scratch, for the elements whose corners are tested after a
@@ -470,6 +501,7 @@ def _triage(buf, idx, k, later, held, nl, area, reach, band):
             buf[12, k] = held[_HELD_POINT, j]
             buf[13, k] = held[_HELD_POINT + 1, j]
             buf[14, k] = held[_HELD_POINT + 2, j]
+            buf[15, k] = area[i]
             k = _gather(
                 buf, idx, k, i, held[_HELD_NORMAL, j], held[_HELD_NORMAL + 1, j],
                 held[_HELD_NORMAL + 2, j], held[_HELD_VEL, j], held[_HELD_VEL + 1, j],
@@ -486,24 +518,25 @@ def _triage(buf, idx, k, later, held, nl, area, reach, band):
 
 @numba.njit(inline="always", **_JIT)
 def _clip_held(j, i, held, patch, normal, area, band_r, poly, rot, omega, v_ref, p_ref):
-    """(W [m^3], x, y, z [m], nx, ny, nz, vx, vy, vz [m/s]) of element i, held at column j:
-    the submerged, leading part of its triangle (mjrft.core.quadrature) blended into the
-    one-point rule (_blend); W = 0: nothing acts. World frame."""
+    """(W [m^3], a [m^2], x, y, z [m], nx, ny, nz, vx, vy, vz [m/s]) of element i, held at
+    column j: the submerged, leading part of its triangle (mjrft.core.quadrature, area a)
+    blended into the one-point rule (_blend); W = 0: nothing acts. World frame."""
     d0, d1, d2 = held[_HELD_D, j], held[_HELD_D + 1, j], held[_HELD_D + 2, j]
     s0, s1, s2 = held[_HELD_S, j], held[_HELD_S + 1, j], held[_HELD_S + 2, j]
     if d0 > 0.0 and d1 > 0.0 and d2 > 0.0:  # the whole triangle, or the leading boundary cuts it
-        w, l0, l1, l2 = _cut(d0, d1, d2, s0, s1, s2, area)
+        w, l0, l1, l2, a = _cut(d0, d1, d2, s0, s1, s2, area)
     elif s0 > 0.0 and s1 > 0.0 and s2 > 0.0:  # only the free surface cuts it
-        w, l0, l1, l2 = _cut(d0, d1, d2, d0, d1, d2, area)
+        w, l0, l1, l2, a = _cut(d0, d1, d2, d0, d1, d2, area)
     else:
-        w, l0, l1, l2 = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
+        w, l0, l1, l2, a = _clipped(poly, d0, d1, d2, s0, s1, s2, area)
     if w == 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    return _blend(
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    w, x, y, z, nx, ny, nz, vx, vy, vz = _blend(
         patch, normal, i, area, held[_HELD_DEPTH, j], band_r, d0, d1, d2, w, l0, l1, l2, rot,
         held[_HELD_POINT, j], held[_HELD_POINT + 1, j], held[_HELD_POINT + 2, j], omega, v_ref,
         p_ref,
     )  # fmt: skip
+    return w, a, x, y, z, nx, ny, nz, vx, vy, vz
 
 
 @numba.njit(inline="always", **_JIT)
@@ -548,11 +581,14 @@ def _gather(buf, idx, k, i, nx, ny, nz, wx, wy, wz, depth, area, inside):
 def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
     """Fill out (n, 3) with element forces [N]; inputs world frame, n_hat unit. Returns #acting.
 
-    co: (18,) from combined_coefficients, or (agarwal.SIZE,) Agarwal's model's parameters
-    (``Material.kernel_coefficients``); ay: generic alpha_y; zeta [N/m^3]; surface_z [m].
+    co: (18,) from combined_coefficients, or (agarwal.SIZE,) Agarwal's model's parameters, with
+    the dynamic term's lambda rho_c [kg/m^3] appended if it is on (``Material.
+    kernel_coefficients``); ay: generic alpha_y; zeta [N/m^3]; surface_z [m].
     """
     n = pos.shape[0]
     buf, idx = _scratch()
+    lam_rho = dynamic_coefficient(co)
+    dyn = lam_rho > 0.0
     count = 0
     for c0 in range(0, n, CHUNK):
         c1 = min(n, c0 + CHUNK)
@@ -567,6 +603,10 @@ def forces(pos, n_hat, area, vel, co, ay, zeta, surface_z, out):
                 vel[i, 2], surface_z - pos[i, 2], area[i], True,
             )  # fmt: skip
         _evaluate_model(buf, k, co, ay, zeta)
+        if dyn:
+            for j in range(k):
+                i = idx[j]
+                _dynamic(buf, j, lam_rho, area[i], vel[i, 0], vel[i, 1], vel[i, 2])
         for j in range(k):
             i = idx[j]
             out[i, 0] = buf[9, j]
@@ -650,6 +690,8 @@ def body_wrench(
     band = quadrature.UNEVEN_REACH  # corner depths are within band * reach of the centroid's
     spin = math.sqrt(wx * wx + wy * wy + wz * wz)
     top = surface.ceiling(surface_prm, soil)  # an element above it is dry wherever it is
+    lam_rho = dynamic_coefficient(co)
+    dyn = lam_rho > 0.0
     # The body's motion in its own frame, v(c) = lin_b + ang_b x c at the body point c, for the
     # corners' n . v (_corner_values).
     ang_b, lin_b = np.empty(3), np.empty(3)
@@ -719,13 +761,15 @@ def body_wrench(
             buf[12, k] = px
             buf[13, k] = py
             buf[14, k] = pz
+            if dyn:
+                buf[15, k] = area[i]
             k = _gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, area[i], True)
         _corner_values(patch, cf, later, held, nl, rot, ang_b, lin_b, surface_prm, surface_grid,
                        soil)  # fmt: skip
         k, nc = _triage(buf, idx, k, later, held, nl, area, reach, band)
         for j in range(nc):
             i = later[j]
-            wet, px, py, pz, nx, ny, nz, vx, vy, vz = _clip_held(
+            wet, a_wet, px, py, pz, nx, ny, nz, vx, vy, vz = _clip_held(
                 j, i, held, patch, norm, area[i], band * reach[i], poly, rot, omega, v_ref, p_ref
             )
             if wet == 0.0:
@@ -733,6 +777,7 @@ def body_wrench(
             buf[12, k] = px
             buf[13, k] = py
             buf[14, k] = pz
+            buf[15, k] = a_wet
             k = _gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, 1.0, wet, True)  # wet: the integral
         if rows.shape[0] > 0:
             for j in range(k):
@@ -744,6 +789,11 @@ def body_wrench(
             count += k
             continue
         _evaluate_model(buf, k, co, ay, zeta)
+        if dyn:  # the velocity at each point: the body's twist (the gather may rescale w)
+            for j in range(k):
+                dx, dy, dz = buf[12, j] - qx, buf[13, j] - qy, buf[14, j] - qz
+                _dynamic(buf, j, lam_rho, buf[15, j], ux + wy * dz - wz * dy,
+                         uy + wz * dx - wx * dz, uz + wx * dy - wy * dx)  # fmt: skip
         for j in range(k):
             fx, fy, fz = buf[9, j], buf[10, j], buf[11, j]
             if fx == 0.0 and fy == 0.0 and fz == 0.0:

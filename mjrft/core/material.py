@@ -16,6 +16,7 @@ order, alpha_y = alpha_x(0, 0); users may supply their own alpha_y(beta).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import warnings
@@ -37,6 +38,9 @@ AGARWAL_PLATE_DOWN = -(sum(agarwal.C1) + sum(agarwal.C2) + sum(agarwal.C3))
 #: Default intruder-medium friction of the agarwal3d model: large enough never to cap the
 #: tangential part (the source's example uses 10).
 AGARWAL_MU_SURF = 10.0
+#: Bulk densities of dry granular media are 1,000-2,000 kg/m^3 (glass beads ~1,500, packing
+#: fraction 0.6 of 2,500); a dynamic term's rho_c above this is almost surely in other units.
+RHO_C_MAX = 5000.0
 
 #: The (m, n) harmonics of Li 2013's first-order Fourier fit, in a fixed order.
 HARMONICS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
@@ -292,6 +296,8 @@ class Material:
       source: where the numbers come from.
       agarwal: the parameters of Agarwal et al.'s 3D-RFT (``mjrft.core.agarwal.parameters``)
         when that is the force model (``model``, ``with_model``), else None.
+      dynamic: lambda rho_c [kg/m^3] of the dynamic (inertial) RFT term, 0 when it is off (the
+        default; ``with_dynamic``, docs/models.md "Dynamic RFT").
     """
 
     name: str
@@ -303,6 +309,7 @@ class Material:
     alpha_y0: float = 0.0
     source: str = ""
     agarwal: np.ndarray | None = field(default=None, repr=False)
+    dynamic: float = 0.0
 
     # ----------------------------------------------------------------- constructors
     @classmethod
@@ -457,6 +464,11 @@ class Material:
         (xi_n = alpha_z(0, pi/2) / AGARWAL_PLATE_DOWN), and intruder-medium friction mu_surf."""
         if model not in MODELS:
             raise ValueError(f"unknown force model {model!r}; valid: {', '.join(MODELS)}")
+        if self.dynamic > 0.0:  # the dynamic term goes with the medium, whatever the model
+            return dataclasses.replace(
+                dataclasses.replace(self, dynamic=0.0).with_model(model, mu_surf=mu_surf),
+                dynamic=self.dynamic,
+            )
         if model == "treers2021":
             if self.agarwal is not None:
                 raise ValueError(
@@ -476,6 +488,34 @@ class Material:
         return Material.agarwal3d(self.zeta * plate_down / AGARWAL_PLATE_DOWN, mu_surf,
                                   name=f"{self.name} (agarwal3d)",
                                   source=f"{self.source}; scale matched for agarwal3d")  # fmt: skip
+
+    def with_dynamic(self, rho_c: float, lam: float = 1.0) -> Material:
+        """This medium with the dynamic RFT inertial term: a leading element of acting area A
+        [m^2] moving at v [m/s] feels -lam rho_c (n . v)^2 A n more (n its outward normal),
+        the momentum flux of the grains it sets moving; rho_c [kg/m^3] the medium's bulk
+        density, lam (dimensionless) the fraction of that flux the body feels. rho_c = 0
+        switches it off."""
+        for label, value in (("rho_c", rho_c), ("lambda", lam)):
+            try:
+                ok = math.isfinite(float(value)) and float(value) >= 0.0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(
+                    f"dynamic RFT {label} = {value!r}: expected a finite number >= 0"
+                    + (" in kg/m^3 (bulk density)" if label == "rho_c" else "")
+                )
+        rho_c, lam = float(rho_c), float(lam)
+        if rho_c * lam > 0.0 and not self.compiled:
+            raise ValueError(
+                f"material {self.name!r} is given by callables: the dynamic RFT term runs in the "
+                "compiled kernel only; give a preset, zeta or a table"
+            )
+        if rho_c > RHO_C_MAX:
+            warnings.warn(
+                f"dynamic RFT rho_c = {rho_c:g} kg/m^3 is denser than any granular medium "
+                f"(> {RHO_C_MAX:g}); is it in kg/m^3?", MaterialWarning, stacklevel=2)  # fmt: skip
+        return dataclasses.replace(self, dynamic=float(rho_c * lam))
 
     @classmethod
     def agarwal3d(
@@ -504,12 +544,16 @@ class Material:
     @functools.cached_property
     def kernel_coefficients(self) -> np.ndarray:
         """The compiled kernel's coefficients: (18,) generic coefficients in its combined form
-        (Fourier media), or (agarwal.SIZE,) parameters of the agarwal3d model."""
+        (Fourier media), or (agarwal.SIZE,) parameters of the agarwal3d model; with the dynamic
+        term, its lambda rho_c [kg/m^3] appended."""
         if self.agarwal is not None:
-            return self.agarwal
-        if self.fourier is None:
+            base = self.agarwal
+        elif self.fourier is None:
             raise ValueError(f"material {self.name!r} is given by callables, not coefficients")
-        return combined_coefficients(self.fourier)
+        else:
+            base = combined_coefficients(self.fourier)
+        # The kernel reads a dynamic term's coefficient from one extra entry (kernel.N_COMBINED).
+        return np.append(base, self.dynamic) if self.dynamic > 0.0 else base
 
     # ----------------------------------------------------------------- evaluation
     def alpha_generic(

@@ -11,6 +11,9 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          agarwal3d (mjrft.core.agarwal; its scale
                                                          matched to the material's)
       <numeric name="mjrft:mu_surf" data="10"/>          agarwal3d's intruder-medium friction
+      <numeric name="mjrft:dynamic" data="1500 1"/>      dynamic RFT inertial term (off by
+                                                         default): bulk density rho_c [kg/m^3]
+                                                         and optional lambda (default 1)
       <numeric name="mjrft:surface_z" data="0"/>         free-surface height [m] (default 0)
       <numeric name="mjrft:surface_slope" data="10 90"/> or a tilted plane through (0, 0,
                                                          surface_z): slope and downhill azimuth
@@ -82,6 +85,7 @@ KEYS = {
         "repose",
         "deform_every",
         "mu_surf",
+        "dynamic",
     ),
     "tuple": ("intruders",),
 }
@@ -325,7 +329,7 @@ def scene_from_model(
             f"{', '.join(sorted(PRESETS))}) or <numeric name='{PREFIX}zeta' data='...'/> to "
             "<custom>, or pass material= to GranularField"
         )
-    material = _force_model(model, custom, material)
+    material = _dynamic_term(model, custom, _force_model(model, custom, material))
     surface = _numeric_field(model, custom, "surface_z", (1,), "one finite number [m]")
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
@@ -484,6 +488,19 @@ def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Mat
         return material.with_model(name, mu_surf=AGARWAL_MU_SURF if mu is None else float(mu[0]))
     except ValueError as exc:
         raise SceneError(f"{where}: {exc}") from None
+
+
+def _dynamic_term(model: mujoco.MjModel, custom: dict, material: Material) -> Material:
+    """The material with the dynamic RFT term mjrft:dynamic asks for (rho_c [kg/m^3], lambda)."""
+    data = _numeric_field(
+        model, custom, "dynamic", (1, 2), "rho_c [kg/m^3] >= 0 and optional lambda >= 0"
+    )
+    if data is None:
+        return material
+    try:
+        return material.with_dynamic(float(data[0]), float(data[1]) if data.size == 2 else 1.0)
+    except ValueError as exc:
+        raise SceneError(f"<numeric name='{PREFIX}dynamic'>: {exc}") from None
 
 
 def _deforming(model, custom, initial: Surface, region, material, options) -> Surface:
