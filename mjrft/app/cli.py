@@ -684,7 +684,8 @@ def _add_fit(sub) -> None:
         help="fit a medium's RFT coefficients to plate intrusion data (CSV)",
         description=(
             "Least-squares fit of Li 2013's Fourier coefficients to plate intrusion data: a CSV "
-            "with columns beta_deg, gamma_deg, depth_m, area_m2, fx_N, fz_N (docs/materials.md). "
+            "with columns beta_deg, gamma_deg, depth_m, area_m2, fx_N, fz_N (docs/materials.md); "
+            "with yaw_deg and fy_N also alpha_y(beta) and f1, f23 from the yawed plates. "
             "Writes material.xml (mjrft:zeta and mjrft:coefficients to paste into <custom>), "
             "fit.json (coefficients with 95%% intervals) and residuals.png."
         ),
@@ -701,16 +702,24 @@ def _add_fit(sub) -> None:
 
 def _fit(args: argparse.Namespace) -> int:
     from mjrft.app import fitting
+    from mjrft.core.fit import fit_yawed
 
     data = fitting.read_csv(args.data)
     result = fitting.choose(data, args.order)
-    written = fitting.write_outputs(data, result, args.out)
+    yawed_data = fitting.read_yawed(args.data)
+    yawed = None if yawed_data is None else fit_yawed(yawed_data, result)
+    written = fitting.write_outputs(data, result, args.out, yawed)
     print(f"mjrft fit {args.data}: {result.n} plates, {result.order}-order set, zeta = "
           f"{result.material.zeta:.4g} N/m^3, RMS residual F_z {result.rms['z']:.3g} N, "
           f"F_x {result.rms['x']:.3g} N")  # fmt: skip
     for k, v in result.coefficients.items():
         lo, hi = result.interval(k)
         print(f"  {k:5s} {v:12.5g} N/m^3  (95%: {lo:.5g} .. {hi:.5g})")
+    if yawed is not None:
+        print(f"{yawed.n} yawed plates: alpha_y(beta) and the scaling functions f1, f23")
+        for k, v in yawed.values.items():
+            lo, hi = yawed.interval(k)
+            print(f"  {k:9s} {v:12.5g}  (95%: {lo:.5g} .. {hi:.5g})")
     print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
 

@@ -3,7 +3,10 @@
 The CSV has a header row and one row per plate (docs/materials.md, "Fit your own medium"):
 ``beta_deg, gamma_deg, depth_m, area_m2, fx_N, fz_N`` (angles as in docs/design.md 2.4; the
 plate moves in the x-z plane with its horizontal motion along +x; forces are world components on
-the plate, z up). Other columns are ignored.
+the plate, z up). Optional yawed plates: with columns ``yaw_deg`` and ``fy_N`` (the motion
+turned out of the x-z plane towards +y by the yaw, ``mjrft.core.fit.YawedPlateData``), the rows
+at yaw 0 give the in-plane coefficients and the others the out-of-plane coefficient
+alpha_y(beta) and the scaling functions f1, f23 (``fit_yawed``). Other columns are ignored.
 """
 
 from __future__ import annotations
@@ -15,39 +18,66 @@ from pathlib import Path
 
 import numpy as np
 
-from mjrft.core.fit import SETS, Fit, FitError, PlateData, basis, fit
+from mjrft.core.fit import SETS, Fit, FitError, PlateData, YawedPlateData, YawFit, basis, fit
 from mjrft.core.units import N_PER_CM3
 from mjrft.field.scene import COEFFICIENT_ORDER
 
 COLUMNS = ("beta_deg", "gamma_deg", "depth_m", "area_m2", "fx_N", "fz_N")
+YAW_COLUMNS = ("yaw_deg", "fy_N")
 DEG = np.pi / 180.0  # rad per degree: the CSV gives angles in degrees
 
 
 def read_csv(path: str | os.PathLike) -> PlateData:
-    """PlateData from a CSV of COLUMNS; raises FitError naming the file, row and column."""
-    p = Path(path)
+    """PlateData from a CSV of COLUMNS (its rows at yaw 0 if it has YAW_COLUMNS); raises
+    FitError naming the file, row and column."""
+    values, yawed = _read(Path(path))
+    if yawed is not None:
+        values = values[yawed[:, 0] == 0.0]
+    beta, gamma, depth, area, fx, fz = values.T
+    return PlateData(beta * DEG, gamma * DEG, depth, area, fx, fz)
+
+
+def read_yawed(path: str | os.PathLike) -> YawedPlateData | None:
+    """The yawed plates (yaw != 0) of a CSV with YAW_COLUMNS, or None if it has none."""
+    values, yawed = _read(Path(path))
+    if yawed is None or not np.any(yawed[:, 0] != 0.0):
+        return None
+    on = yawed[:, 0] != 0.0
+    beta, gamma, depth, area, fx, fz = values[on].T
+    return YawedPlateData(beta * DEG, gamma * DEG, yawed[on, 0] * DEG, depth, area, fx,
+                          yawed[on, 1], fz)  # fmt: skip
+
+
+def _read(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """(rows x COLUMNS, rows x YAW_COLUMNS or None) of the CSV, as numbers."""
     try:
         with open(p, newline="") as fh:
             reader = csv.DictReader(fh)
-            missing = [c for c in COLUMNS if c not in (reader.fieldnames or [])]
+            header = reader.fieldnames or []
+            missing = [c for c in COLUMNS if c not in header]
             if missing:
                 raise FitError(
                     f"{p}: missing column(s) {', '.join(missing)}; expected {', '.join(COLUMNS)}"
                 )
+            yaw = [c for c in YAW_COLUMNS if c in header]
+            if len(yaw) == 1:
+                other = next(c for c in YAW_COLUMNS if c not in header)
+                raise FitError(f"{p}: column {yaw[0]} needs column {other} (yawed plates)")
             rows = list(reader)
     except OSError as exc:
         raise FitError(f"cannot read {p}: {exc.strerror}") from None
-    values = np.empty((len(rows), len(COLUMNS)))
+    columns = COLUMNS + (YAW_COLUMNS if yaw else ())
+    values = np.empty((len(rows), len(columns)))
     for i, row in enumerate(rows):
-        for j, c in enumerate(COLUMNS):
+        for j, c in enumerate(columns):
             try:
                 values[i, j] = float(row[c])
             except (TypeError, ValueError):
                 raise FitError(
                     f"{p}: row {i + 2}, column {c}: {row[c]!r} is not a number"
                 ) from None
-    beta, gamma, depth, area, fx, fz = values.T
-    return PlateData(beta * DEG, gamma * DEG, depth, area, fx, fz)
+    n = len(COLUMNS)
+    return values[:, :n], (values[:, n:] if yaw else None)
 
 
 def choose(data: PlateData, order: str) -> Fit:
@@ -79,6 +109,29 @@ def mjcf(result: Fit) -> str:
         "<!-- the full coefficient set has no MJCF form; in Python:\n"
         f"     Material.from_table({{{table}}}, unit=1.0)  (N/m^3) -->\n"
     )
+
+
+def yaw_summary(result: YawFit) -> dict:
+    """JSON-ready description of a yawed-plate fit: alpha_y(beta) terms [N/m^3] and the f1, f23
+    shape parameters with 95 % intervals, and the kernel's values of the latter."""
+    from mjrft.core import law
+
+    kernel = {"f1_slope": law.F1_SLOPE, "f1_shift": law.F1_SHIFT, "f23_slope": law.F23_SLOPE,
+              "f23_shift": law.F23_SHIFT}  # fmt: skip
+    return {
+        "plates": result.n,
+        "alpha_y": "ay0 + ay_cos2b cos(2 beta) + ay_sin2b sin(2 beta) [N/m^3]",
+        "values": {k: _entry(result, k, kernel.get(k)) for k in result.values},
+        "residual_rms_N": result.rms,
+        "note": "the compiled kernel uses Treers et al.'s f1 and f23 (mjrft.core.law) and a "
+        "constant alpha_y; Material(alpha_y0=ay0 / zeta) takes the fitted constant",
+    }
+
+
+def _entry(result: YawFit, name: str, kernel: float | None) -> dict:
+    entry = {"value": result.values[name], "standard_error": result.standard_errors[name],
+             "ci95": list(result.interval(name))}  # fmt: skip
+    return entry | ({"kernel": kernel} if kernel is not None else {})
 
 
 def summary(result: Fit) -> dict:
@@ -131,11 +184,14 @@ def plot_residuals(data: PlateData, result: Fit, path: Path) -> Path:
     return path
 
 
-def write_outputs(data: PlateData, result: Fit, out: Path) -> list[Path]:
-    """material.xml, fit.json and residuals.png in out (created)."""
+def write_outputs(
+    data: PlateData, result: Fit, out: Path, yawed: YawFit | None = None
+) -> list[Path]:
+    """material.xml, fit.json (with the yawed-plate fit, if given) and residuals.png in out."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "material.xml").write_text(mjcf(result))
-    (out / "fit.json").write_text(json.dumps(summary(result), indent=2) + "\n")
+    record = summary(result) | ({"yawed": yaw_summary(yawed)} if yawed is not None else {})
+    (out / "fit.json").write_text(json.dumps(record, indent=2) + "\n")
     return [
         out / "material.xml",
         out / "fit.json",

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mjrft.core.law import HORIZONTAL_PLATE_NZ
 from mjrft.core.material import FourierCoefficients, Material
 
 FIRST_ORDER = {
@@ -163,3 +164,194 @@ def _check(data: PlateData) -> None:
 
 def _first(a: np.ndarray) -> int:
     return int(np.flatnonzero(~np.isfinite(a))[0])
+
+
+# --------------------------------------------------------------------------------------------
+# Yawed plates: the out-of-plane coefficient alpha_y(beta) and the scaling functions f1, f23
+# --------------------------------------------------------------------------------------------
+
+#: alpha_y(beta) = sum of these terms' coefficients times 1, cos 2 beta, sin 2 beta.
+ALPHA_Y_TERMS = ("ay0", "ay_cos2b", "ay_sin2b")
+#: The shape parameters of f1 and f23 (mjrft.core.law): slope and shift each, the gain fixed by
+#: f(1) = 1 (f(0) = 0 holds for any slope and shift).
+SCALING_PARAMETERS = ("f1_slope", "f1_shift", "f23_slope", "f23_shift")
+#: Plates with |cos beta| at or above this are nearly horizontal: their frame comes from the
+#: motion (docs/design.md 2.2), not from the plate, so the yaw fit leaves them out.
+HORIZONTAL_COS_BETA = HORIZONTAL_PLATE_NZ
+#: Gauss-Newton (Levenberg-damped) on the scaling parameters: iterations and the relative step
+#: below which it has converged.
+_GN_ITERATIONS, _GN_RTOL = 100, 1e-12
+
+
+@dataclass(frozen=True)
+class YawedPlateData:
+    """Yawed plate measurements, (n,) arrays: the in-plane angles beta, gamma [rad] of
+    ``PlateData``, the yaw psi [rad] (the motion turned out of the x-z plane towards +y:
+    v = cos psi (cos gamma, 0, -sin gamma) + sin psi (0, 1, 0)), depth [m], area [m^2] and
+    the world force components fx, fy, fz [N]."""
+
+    beta: np.ndarray
+    gamma: np.ndarray
+    psi: np.ndarray
+    depth: np.ndarray
+    area: np.ndarray
+    fx: np.ndarray
+    fy: np.ndarray
+    fz: np.ndarray
+
+
+@dataclass(frozen=True)
+class YawFit:
+    """alpha_y(beta) [N/m^3] coefficients (``ALPHA_Y_TERMS``) and the f1 / f23 shape parameters
+    (``SCALING_PARAMETERS``), their standard errors, residual RMS per component [N], plates."""
+
+    values: dict[str, float]
+    standard_errors: dict[str, float]
+    rms: dict[str, float]
+    n: int
+
+    def interval(self, name: str, z: float = Z95) -> tuple[float, float]:
+        """(low, high) of `name` at z standard errors (default 95 %)."""
+        c, se = self.values[name], self.standard_errors[name]
+        return c - z * se, c + z * se
+
+    def alpha_y(self, beta) -> np.ndarray:
+        """The fitted alpha_y [N/m^3] at attack angles beta [rad]."""
+        b = np.asarray(beta, dtype=float)
+        v = self.values
+        return v["ay0"] + v["ay_cos2b"] * np.cos(2 * b) + v["ay_sin2b"] * np.sin(2 * b)
+
+
+def scaling(u, slope: float, shift: float, inverse_tanh: bool) -> np.ndarray:
+    """g(u) = (h(slope u - shift) + h(shift)) / (h(slope - shift) + h(shift)), h = tanh (f1)
+    or atanh (f23): the form of mjrft.core.law's f1, f23 with the gain that makes g(1) = 1."""
+    h = np.arctanh if inverse_tanh else np.tanh
+    u = np.asarray(u, dtype=float)
+    return (h(slope * u - shift) + h(shift)) / (h(slope - shift) + h(shift))
+
+
+def fit_yawed(data: YawedPlateData, in_plane: Fit, start: dict[str, float] | None = None) -> YawFit:
+    """alpha_y(beta) and f1, f23 from yawed plates (Treers et al. 2021, docs/design.md 2.8):
+    F_x, F_z = f23(|cos psi|) times the in-plane fit's force at (beta, gamma), and F_y =
+    -sign(psi) f1(|sin psi|) alpha_y(beta) d A. Nonlinear least squares (Levenberg-damped
+    Gauss-Newton from `start`, by default mjrft.core.law's values; alpha_y solved linearly
+    inside); plates within 2.6 deg of horizontal are left out. Raises FitError if the yaws or
+    attack angles cannot determine the parameters."""
+    from mjrft.core import law
+
+    _check_yawed(data)
+    keep = np.abs(np.cos(data.beta)) < HORIZONTAL_COS_BETA
+    data = YawedPlateData(*(np.asarray(getattr(data, f), dtype=float)[keep]
+                            for f in YawedPlateData.__dataclass_fields__))  # fmt: skip
+    s, c = np.abs(np.sin(data.psi)), np.abs(np.cos(data.psi))
+    da = data.depth * data.area
+    names_x, names_z = SETS[in_plane.order]["x"], SETS[in_plane.order]["z"]
+    cx = np.array([in_plane.coefficients[k] for k in names_x])
+    cz = np.array([in_plane.coefficients[k] for k in names_z])
+    fx0 = -da * (basis(names_x, "x", data.beta, data.gamma) @ cx)
+    fz0 = da * (basis(names_z, "z", data.beta, data.gamma) @ cz)
+    cols = -np.sign(data.psi)[:, None] * (da[:, None] * _alpha_y_basis(data.beta))
+
+    def f23_residual(p):
+        g = scaling(c, p[0], p[1], inverse_tanh=True)
+        return np.concatenate([data.fx - g * fx0, data.fz - g * fz0])
+
+    def f1_residual(p):  # alpha_y projected out: linear in it for given f1
+        x = scaling(s, p[0], p[1], inverse_tanh=False)[:, None] * cols
+        coef = np.linalg.lstsq(x, data.fy, rcond=None)[0]
+        return data.fy - x @ coef
+
+    begin = {"f1_slope": law.F1_SLOPE, "f1_shift": law.F1_SHIFT, "f23_slope": law.F23_SLOPE,
+             "f23_shift": law.F23_SHIFT} | (start or {})  # fmt: skip
+    p23, se23, rms23 = _gauss_newton(f23_residual, (begin["f23_slope"], begin["f23_shift"]), "f23")
+    p1, se1, _ = _gauss_newton(f1_residual, (begin["f1_slope"], begin["f1_shift"]), "f1")
+    x = scaling(s, p1[0], p1[1], inverse_tanh=False)[:, None] * cols
+    ay, ay_se, rms_y = _least_squares(x, data.fy, ALPHA_Y_TERMS, data)
+    values = dict(ay) | dict(zip(SCALING_PARAMETERS, map(float, [*p1, *p23]), strict=True))
+    errors = dict(ay_se) | dict(zip(SCALING_PARAMETERS, map(float, [*se1, *se23]), strict=True))
+    n = len(data.psi)
+    rms = {"x": rms23["x"], "y": rms_y, "z": rms23["z"]} if rms23 else {"y": rms_y}
+    return YawFit(values, errors, rms, n)
+
+
+def _alpha_y_basis(beta: np.ndarray) -> np.ndarray:
+    return np.stack([np.ones_like(beta), np.cos(2 * beta), np.sin(2 * beta)], axis=1)
+
+
+def _gauss_newton(residual, start, label: str):
+    """(parameters, standard errors, {'x': rms, 'z': rms} for f23 else {}) minimising
+    |residual(p)|^2 over the two shape parameters of `label`, from `start`."""
+    p = np.array(start, dtype=float)
+    r = residual(p)
+    lam = 1e-3
+    for _ in range(_GN_ITERATIONS):
+        jac = _jacobian(residual, p, r)
+        jtj, g = jac.T @ jac, jac.T @ r
+        step = np.linalg.solve(jtj + lam * np.diag(np.diag(jtj)), -g)
+        trial = p + step
+        rt = residual(trial) if _valid(trial, label) else None
+        if rt is not None and np.all(np.isfinite(rt)) and rt @ rt <= r @ r:
+            p, r, lam = trial, rt, lam / 10.0
+            if np.all(np.abs(step) <= _GN_RTOL * np.maximum(np.abs(p), 1.0)):
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e12:
+                break
+    jac = _jacobian(residual, p, r)
+    dof = max(1, len(r) - 2)
+    cov = np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    half = len(r) // 2
+    rms = (
+        {"x": math.sqrt(float(r[:half] @ r[:half]) / half),
+         "z": math.sqrt(float(r[half:] @ r[half:]) / half)}
+        if label == "f23" else {}
+    )  # fmt: skip
+    return p, se, rms
+
+
+def _valid(p: np.ndarray, label: str) -> bool:
+    """f23's atanh needs |slope u - shift| < 1 on [0, 1]; both need a rising function."""
+    if p[0] <= 0.0:
+        return False
+    return label != "f23" or (abs(p[1]) < 1.0 and abs(p[0] - p[1]) < 1.0)
+
+
+def _jacobian(residual, p: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Central differences (the residuals are smooth in the shape parameters)."""
+    jac = np.empty((len(r), len(p)))
+    for k in range(len(p)):
+        h = 1e-6 * max(1.0, abs(p[k]))
+        up, down = p.copy(), p.copy()
+        up[k] += h
+        down[k] -= h
+        jac[:, k] = (residual(up) - residual(down)) / (2 * h)
+    return jac
+
+
+def _check_yawed(data: YawedPlateData) -> None:
+    arrays = {f: np.asarray(getattr(data, f), dtype=float)
+              for f in YawedPlateData.__dataclass_fields__}  # fmt: skip
+    shapes = {a.shape for a in arrays.values()}
+    if len(shapes) != 1 or len(next(iter(shapes))) != 1:
+        raise FitError(f"yawed plate data must be (n,) arrays of one length, got {sorted(shapes)}")
+    for f, a in arrays.items():
+        if not np.all(np.isfinite(a)):
+            raise FitError(f"yawed plate data column {f} has non-finite values (row {_first(a)})")
+    if np.any(np.abs(data.psi) >= 0.5 * np.pi):
+        bad = int(np.flatnonzero(np.abs(data.psi) >= 0.5 * np.pi)[0])
+        raise FitError(f"yaw must be in (-90, 90) deg (row {bad}: {np.degrees(data.psi[bad]):g})")
+    yaws = np.unique(np.round(np.abs(np.degrees(data.psi)), 3))
+    inside = yaws[(yaws > 0) & (yaws < 90)]
+    if inside.size < 3:
+        raise FitError(
+            f"f1 and f23 need yawed plates at >= 3 distinct |yaw| in (0, 90) deg; the data have "
+            f"yaw {_degrees(data.psi)} [deg]"
+        )
+    tilt = np.abs(np.cos(data.beta)) < HORIZONTAL_COS_BETA
+    if np.unique(np.round(np.degrees(data.beta[tilt]) % 180, 3)).size < 3:
+        raise FitError(
+            "alpha_y(beta) needs yawed plates at >= 3 distinct attack angles beta (mod 180 deg) "
+            f"away from horizontal; the data have beta {_degrees(data.beta)} [deg]"
+        )
