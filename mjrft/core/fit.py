@@ -264,9 +264,19 @@ def fit_yawed(data: YawedPlateData, in_plane: Fit, start: dict[str, float] | Non
     begin = {"f1_slope": law.F1_SLOPE, "f1_shift": law.F1_SHIFT, "f23_slope": law.F23_SLOPE,
              "f23_shift": law.F23_SHIFT} | (start or {})  # fmt: skip
     p23, se23, rms23 = _gauss_newton(f23_residual, (begin["f23_slope"], begin["f23_shift"]), "f23")
-    p1, se1, _ = _gauss_newton(f1_residual, (begin["f1_slope"], begin["f1_shift"]), "f1")
+    p1, _, _ = _gauss_newton(f1_residual, (begin["f1_slope"], begin["f1_shift"]), "f1")
     x = scaling(s, p1[0], p1[1], inverse_tanh=False)[:, None] * cols
-    ay, ay_se, rms_y = _least_squares(x, data.fy, ALPHA_Y_TERMS, data)
+    ay, _, rms_y = _least_squares(x, data.fy, ALPHA_Y_TERMS, data)
+
+    def fy_residual(q):  # alpha_y and f1 together, for their joint standard errors
+        return data.fy - scaling(s, q[3], q[4], inverse_tanh=False) * (cols @ q[:3])
+
+    q = np.array([*ay.values(), *p1])
+    r = fy_residual(q)
+    jac = _jacobian(fy_residual, q, r)
+    cov = np.linalg.pinv(jac.T @ jac) * float(r @ r) / max(1, len(r) - len(q))
+    se_joint = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    ay_se, se1 = dict(zip(ALPHA_Y_TERMS, se_joint[:3].tolist(), strict=True)), se_joint[3:]
     values = dict(ay) | dict(zip(SCALING_PARAMETERS, map(float, [*p1, *p23]), strict=True))
     errors = dict(ay_se) | dict(zip(SCALING_PARAMETERS, map(float, [*se1, *se23]), strict=True))
     n = len(data.psi)
