@@ -148,14 +148,20 @@ def _degrees(angles: np.ndarray) -> str:
     return f"{{{shown}{', ...' if len(values) > 12 else ''}}}"
 
 
-def _check(data: PlateData) -> None:
-    arrays = {f: np.asarray(getattr(data, f), dtype=float) for f in PlateData.__dataclass_fields__}
+def _columns(data, label: str) -> dict[str, np.ndarray]:
+    """The data's columns as float arrays, checked to be (n,) of one length and finite."""
+    arrays = {f: np.asarray(getattr(data, f), dtype=float) for f in type(data).__dataclass_fields__}
     n = {a.shape for a in arrays.values()}
     if len(n) != 1 or len(next(iter(n))) != 1:
-        raise FitError(f"plate data must be (n,) arrays of one length, got shapes {sorted(n)}")
+        raise FitError(f"{label} must be (n,) arrays of one length, got shapes {sorted(n)}")
     for f, a in arrays.items():
         if not np.all(np.isfinite(a)):
-            raise FitError(f"plate data column {f} has non-finite values (row {_first(a)})")
+            raise FitError(f"{label} column {f} has non-finite values (row {_first(a)})")
+    return arrays
+
+
+def _check(data: PlateData) -> None:
+    arrays = _columns(data, "plate data")
     for f in ("depth", "area"):
         bad = np.flatnonzero(arrays[f] <= 0)
         if bad.size:
@@ -341,14 +347,7 @@ def _jacobian(residual, p: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def _check_yawed(data: YawedPlateData) -> None:
-    arrays = {f: np.asarray(getattr(data, f), dtype=float)
-              for f in YawedPlateData.__dataclass_fields__}  # fmt: skip
-    shapes = {a.shape for a in arrays.values()}
-    if len(shapes) != 1 or len(next(iter(shapes))) != 1:
-        raise FitError(f"yawed plate data must be (n,) arrays of one length, got {sorted(shapes)}")
-    for f, a in arrays.items():
-        if not np.all(np.isfinite(a)):
-            raise FitError(f"yawed plate data column {f} has non-finite values (row {_first(a)})")
+    _columns(data, "yawed plate data")
     if np.any(np.abs(data.psi) >= 0.5 * np.pi):
         bad = int(np.flatnonzero(np.abs(data.psi) >= 0.5 * np.pi)[0])
         raise FitError(f"yaw must be in (-90, 90) deg (row {bad}: {np.degrees(data.psi[bad]):g})")
