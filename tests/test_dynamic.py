@@ -185,3 +185,23 @@ def test_a_density_in_the_wrong_units_warns_and_callables_are_refused():
     )
     with pytest.raises(ValueError, match="runs in the compiled kernel only"):
         python.with_dynamic(RHO_C)
+
+
+def test_the_field_and_mjrft_run_override_the_mjcf(tmp_path):
+    xml = SPHERE.format(dynamic=DYNAMIC)
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert GranularField(model).material.dynamic == pytest.approx(RHO_C * LAM)
+    assert GranularField(model, dynamic=0).material.dynamic == 0.0
+    assert GranularField(model, dynamic=(1000.0, 0.5)).material.dynamic == 500.0
+    with pytest.raises(SceneError, match=r"dynamic = \(1, 2, 3\): expected rho_c"):
+        GranularField(model, dynamic=(1, 2, 3))
+    from mjrft.app import cli
+
+    path = tmp_path / "ball.xml"
+    path.write_text(SPHERE.format(dynamic=""))
+    out = tmp_path / "run"
+    assert cli.main(["run", str(path), "--duration", "0.05", "--out", str(out), "--no-plots",
+                     "--dynamic", "1500", "0.8"]) == 0  # fmt: skip
+    args = cli.build_parser().parse_args(["run", str(path), "--duration", "1", "--out", "x",
+                                          "--dynamic", "1500"])  # fmt: skip
+    assert cli._scene(args, str(path))[2].material.dynamic == 1500.0

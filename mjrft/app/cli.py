@@ -796,7 +796,7 @@ def _scene(args: argparse.Namespace, xml):
     fld = GranularField(
         model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
         low_speed=args.low_speed, stick_reach=args.stick_reach, deform_cell=args.deform_cell,
-        repose=args.repose, deform_every=args.deform_every,
+        repose=args.repose, deform_every=args.deform_every, dynamic=args.dynamic,
     )  # fmt: skip
     return model, keyframe, fld
 
@@ -888,6 +888,16 @@ def _add_scene_options(r) -> None:
         metavar="K",
         help="update the deforming ground every K steps: K times cheaper, the ground lagging the "
         "intruders by up to K steps (default: the model's mjrft:deform_every, else 1)",
+    )
+    r.add_argument(
+        "--dynamic",
+        type=_nonnegative_float,
+        nargs="+",
+        default=None,
+        metavar=("RHO_C", "LAMBDA"),
+        help="the dynamic RFT inertial term (docs/models.md): the medium's bulk density RHO_C in "
+        "kg/m^3 and optionally LAMBDA (default 1); 0 turns it off (default: the model's "
+        "mjrft:dynamic, else off)",
     )
     r.add_argument(
         "--stick-reach",

@@ -83,6 +83,8 @@ class GranularField:
         ``mjrft:stick_reach``.
       deform_cell [m], repose [deg], deform_every [steps]: the deforming ground (docs/terrain.md);
         override MJCF ``mjrft:deform_cell`` (0: off), ``mjrft:repose``, ``mjrft:deform_every``.
+      dynamic: the dynamic RFT term (docs/models.md), rho_c [kg/m^3] or (rho_c, lambda);
+        overrides MJCF ``mjrft:dynamic`` (0: off).
     Raises:
       mjrft.field.SceneError (a ValueError) naming the geom or field at fault.
 
@@ -102,12 +104,13 @@ class GranularField:
         deform_cell: float | None = None,
         repose: float | None = None,
         deform_every: int | None = None,
+        dynamic: float | tuple[float, float] | None = None,
     ) -> None:
         self.model = model
         self.scene: Scene = scene_from_model(
             model, material, n_triangles=n_triangles, tolerance=tolerance,
             low_speed=low_speed, stick_reach=stick_reach, deform_cell=deform_cell, repose=repose,
-            deform_every=deform_every,
+            deform_every=deform_every, dynamic=dynamic,
         )  # fmt: skip
         #: Tagged bodies (id order): their elements in the body frame.
         self.bodies: tuple[BodyElements, ...]

@@ -289,8 +289,12 @@ def scene_from_model(
     deform_cell: float | None = None,
     repose: float | None = None,
     deform_every: int | None = None,
+    dynamic: float | tuple[float, float] | None = None,
 ) -> Scene:
     """Read and validate the scene; the keyword arguments override the MJCF's.
+
+    dynamic: the dynamic RFT term's rho_c [kg/m^3], or (rho_c, lambda), as
+    ``mjrft:dynamic``; 0 turns off a term the MJCF asks for.
 
     deform_cell [m], repose [deg] and deform_every [steps]: the deforming ground
     (``mjrft:deform_cell``, ``mjrft:repose``, ``mjrft:deform_every``); deform_cell = 0 turns
@@ -329,7 +333,7 @@ def scene_from_model(
             f"{', '.join(sorted(PRESETS))}) or <numeric name='{PREFIX}zeta' data='...'/> to "
             "<custom>, or pass material= to GranularField"
         )
-    material = _dynamic_term(model, custom, _force_model(model, custom, material))
+    material = _dynamic_term(model, custom, _force_model(model, custom, material), dynamic)
     surface = _numeric_field(model, custom, "surface_z", (1,), "one finite number [m]")
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
@@ -490,17 +494,25 @@ def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Mat
         raise SceneError(f"{where}: {exc}") from None
 
 
-def _dynamic_term(model: mujoco.MjModel, custom: dict, material: Material) -> Material:
-    """The material with the dynamic RFT term mjrft:dynamic asks for (rho_c [kg/m^3], lambda)."""
-    data = _numeric_field(
-        model, custom, "dynamic", (1, 2), "rho_c [kg/m^3] >= 0 and optional lambda >= 0"
-    )
+def _dynamic_term(model: mujoco.MjModel, custom: dict, material: Material, override) -> Material:
+    """The material with the dynamic RFT term that override (rho_c [kg/m^3] or (rho_c,
+    lambda)) or else mjrft:dynamic asks for."""
+    where = "dynamic"
+    if override is None:
+        data = _numeric_field(
+            model, custom, "dynamic", (1, 2), "rho_c [kg/m^3] >= 0 and optional lambda >= 0"
+        )
+        where = f"<numeric name='{PREFIX}dynamic'>"
+    else:
+        data = np.atleast_1d(np.asarray(override, dtype=float))
+        if data.size not in (1, 2):
+            raise SceneError(f"dynamic = {override!r}: expected rho_c or (rho_c, lambda)")
     if data is None:
         return material
     try:
         return material.with_dynamic(float(data[0]), float(data[1]) if data.size == 2 else 1.0)
     except ValueError as exc:
-        raise SceneError(f"<numeric name='{PREFIX}dynamic'>: {exc}") from None
+        raise SceneError(f"{where}: {exc}") from None
 
 
 def _deforming(model, custom, initial: Surface, region, material, options) -> Surface:
