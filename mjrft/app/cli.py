@@ -171,9 +171,9 @@ RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
 #: Seconds of warm-up after which `mjrft run` says it is compiling (a cache load takes ~1 s).
 WARM_UP_NOTICE_S = 2.0
-#: Cold-start compilation time to announce: 148 s measured on the 2-core Xeon VM
-#: (benchmarks/RESULTS.md, "Kernel"; `mjrft demo` 152 s in all).
-COLD_START_S = "2-3 minutes"
+#: Cold-start compilation time to announce: 238-268 s on the 2-core Zen 4 VM, 6-7 min on the
+#: Zen 3 VM (benchmarks/RESULTS.md's machines; the warm-up of a clean-clone CI run).
+COLD_START_S = "4-7 minutes"
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
 
