@@ -181,9 +181,6 @@ ALPHA_Y_TERMS = ("ay0", "ay_cos2b", "ay_sin2b")
 #: The shape parameters of f1 and f23 (mjrft.core.law): slope and shift each, the gain fixed by
 #: f(1) = 1 (f(0) = 0 holds for any slope and shift).
 SCALING_PARAMETERS = ("f1_slope", "f1_shift", "f23_slope", "f23_shift")
-#: Plates with |cos beta| at or above this are nearly horizontal: their frame comes from the
-#: motion (docs/design.md 2.2), not from the plate, so the yaw fit leaves them out.
-HORIZONTAL_COS_BETA = HORIZONTAL_PLATE_NZ
 #: Gauss-Newton (Levenberg-damped) on the scaling parameters: iterations and the relative step
 #: below which it has converged.
 _GN_ITERATIONS, _GN_RTOL = 100, 1e-12
@@ -245,10 +242,11 @@ def fit_yawed(data: YawedPlateData, in_plane: Fit, start: dict[str, float] | Non
     attack angles cannot determine the parameters."""
     from mjrft.core import law
 
-    _check_yawed(data)
-    keep = np.abs(np.cos(data.beta)) < HORIZONTAL_COS_BETA
-    data = YawedPlateData(*(np.asarray(getattr(data, f), dtype=float)[keep]
-                            for f in YawedPlateData.__dataclass_fields__))  # fmt: skip
+    columns = _check_yawed(data)
+    # A nearly horizontal plate (|n_z| = |cos beta|) takes its frame from the motion
+    # (docs/design.md 2.2), not from the plate: left out.
+    keep = np.abs(np.cos(columns["beta"])) < HORIZONTAL_PLATE_NZ
+    data = YawedPlateData(**{f: a[keep] for f, a in columns.items()})
     s, c = np.abs(np.sin(data.psi)), np.abs(np.cos(data.psi))
     da = data.depth * data.area
     names_x, names_z = SETS[in_plane.order]["x"], SETS[in_plane.order]["z"]
@@ -269,24 +267,22 @@ def fit_yawed(data: YawedPlateData, in_plane: Fit, start: dict[str, float] | Non
 
     begin = {"f1_slope": law.F1_SLOPE, "f1_shift": law.F1_SHIFT, "f23_slope": law.F23_SLOPE,
              "f23_shift": law.F23_SHIFT} | (start or {})  # fmt: skip
-    p23, se23, rms23 = _gauss_newton(f23_residual, (begin["f23_slope"], begin["f23_shift"]), "f23")
-    p1, _, _ = _gauss_newton(f1_residual, (begin["f1_slope"], begin["f1_shift"]), "f1")
+    p23 = _gauss_newton(f23_residual, (begin["f23_slope"], begin["f23_shift"]), "f23")
+    se23, r23 = _standard_errors(f23_residual, p23)
+    p1 = _gauss_newton(f1_residual, (begin["f1_slope"], begin["f1_shift"]), "f1")
     x = scaling(s, p1[0], p1[1], inverse_tanh=False)[:, None] * cols
     ay, _, rms_y = _least_squares(x, data.fy, ALPHA_Y_TERMS, data)
 
     def fy_residual(q):  # alpha_y and f1 together, for their joint standard errors
         return data.fy - scaling(s, q[3], q[4], inverse_tanh=False) * (cols @ q[:3])
 
-    q = np.array([*ay.values(), *p1])
-    r = fy_residual(q)
-    jac = _jacobian(fy_residual, q, r)
-    cov = np.linalg.pinv(jac.T @ jac) * float(r @ r) / max(1, len(r) - len(q))
-    se_joint = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    ay_se, se1 = dict(zip(ALPHA_Y_TERMS, se_joint[:3].tolist(), strict=True)), se_joint[3:]
+    se_joint, _ = _standard_errors(fy_residual, np.array([*ay.values(), *p1]))
     values = dict(ay) | dict(zip(SCALING_PARAMETERS, map(float, [*p1, *p23]), strict=True))
-    errors = dict(ay_se) | dict(zip(SCALING_PARAMETERS, map(float, [*se1, *se23]), strict=True))
+    errors = dict(zip(ALPHA_Y_TERMS + SCALING_PARAMETERS,
+                      map(float, [*se_joint, *se23]), strict=True))  # fmt: skip
     n = len(data.psi)
-    rms = {"x": rms23["x"], "y": rms_y, "z": rms23["z"]} if rms23 else {"y": rms_y}
+    rx, rz = r23[:n], r23[n:]
+    rms = {"x": math.sqrt(float(rx @ rx) / n), "y": rms_y, "z": math.sqrt(float(rz @ rz) / n)}
     return YawFit(values, errors, rms, n)
 
 
@@ -294,9 +290,8 @@ def _alpha_y_basis(beta: np.ndarray) -> np.ndarray:
     return np.stack([np.ones_like(beta), np.cos(2 * beta), np.sin(2 * beta)], axis=1)
 
 
-def _gauss_newton(residual, start, label: str):
-    """(parameters, standard errors, {'x': rms, 'z': rms} for f23 else {}) minimising
-    |residual(p)|^2 over the two shape parameters of `label`, from `start`."""
+def _gauss_newton(residual, start, label: str) -> np.ndarray:
+    """The two shape parameters of `label` minimising |residual(p)|^2, from `start`."""
     p = np.array(start, dtype=float)
     r = residual(p)
     lam = 1e-3
@@ -314,17 +309,16 @@ def _gauss_newton(residual, start, label: str):
             lam *= 10.0
             if lam > 1e12:
                 break
+    return p
+
+
+def _standard_errors(residual, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(standard errors of p, residual at p): normal theory from the Jacobian at p, the
+    residual variance over len(r) - len(p) degrees of freedom."""
+    r = residual(p)
     jac = _jacobian(residual, p, r)
-    dof = max(1, len(r) - 2)
-    cov = np.linalg.pinv(jac.T @ jac) * float(r @ r) / dof
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    half = len(r) // 2
-    rms = (
-        {"x": math.sqrt(float(r[:half] @ r[:half]) / half),
-         "z": math.sqrt(float(r[half:] @ r[half:]) / half)}
-        if label == "f23" else {}
-    )  # fmt: skip
-    return p, se, rms
+    cov = np.linalg.pinv(jac.T @ jac) * float(r @ r) / max(1, len(r) - len(p))
+    return np.sqrt(np.maximum(np.diag(cov), 0.0)), r
 
 
 def _valid(p: np.ndarray, label: str) -> bool:
@@ -346,8 +340,9 @@ def _jacobian(residual, p: np.ndarray, r: np.ndarray) -> np.ndarray:
     return jac
 
 
-def _check_yawed(data: YawedPlateData) -> None:
-    _columns(data, "yawed plate data")
+def _check_yawed(data: YawedPlateData) -> dict[str, np.ndarray]:
+    """The data's columns (``_columns``), checked to determine f1, f23 and alpha_y."""
+    columns = _columns(data, "yawed plate data")
     if np.any(np.abs(data.psi) >= 0.5 * np.pi):
         bad = int(np.flatnonzero(np.abs(data.psi) >= 0.5 * np.pi)[0])
         raise FitError(f"yaw must be in (-90, 90) deg (row {bad}: {np.degrees(data.psi[bad]):g})")
@@ -358,9 +353,10 @@ def _check_yawed(data: YawedPlateData) -> None:
             f"f1 and f23 need yawed plates at >= 3 distinct |yaw| in (0, 90) deg; the data have "
             f"yaw {_degrees(data.psi)} [deg]"
         )
-    tilt = np.abs(np.cos(data.beta)) < HORIZONTAL_COS_BETA
+    tilt = np.abs(np.cos(data.beta)) < HORIZONTAL_PLATE_NZ
     if np.unique(np.round(np.degrees(data.beta[tilt]) % 180, 3)).size < 3:
         raise FitError(
             "alpha_y(beta) needs yawed plates at >= 3 distinct attack angles beta (mod 180 deg) "
             f"away from horizontal; the data have beta {_degrees(data.beta)} [deg]"
         )
+    return columns
