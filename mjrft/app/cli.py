@@ -704,9 +704,8 @@ def _fit(args: argparse.Namespace) -> int:
     from mjrft.app import fitting
     from mjrft.core.fit import fit_yawed
 
-    data = fitting.read_csv(args.data)
+    data, yawed_data = fitting.read_plates(args.data)
     result = fitting.choose(data, args.order)
-    yawed_data = fitting.read_yawed(args.data)
     yawed = None if yawed_data is None else fit_yawed(yawed_data, result)
     written = fitting.write_outputs(data, result, args.out, yawed)
     print(f"mjrft fit {args.data}: {result.n} plates, {result.order}-order set, zeta = "

@@ -30,22 +30,22 @@ DEG = np.pi / 180.0  # rad per degree: the CSV gives angles in degrees
 def read_csv(path: str | os.PathLike) -> PlateData:
     """PlateData from a CSV of COLUMNS (its rows at yaw 0 if it has YAW_COLUMNS); raises
     FitError naming the file, row and column."""
-    values, yawed = _read(Path(path))
-    if yawed is not None:
-        values = values[yawed[:, 0] == 0.0]
-    beta, gamma, depth, area, fx, fz = values.T
-    return PlateData(beta * DEG, gamma * DEG, depth, area, fx, fz)
+    return read_plates(path)[0]
 
 
-def read_yawed(path: str | os.PathLike) -> YawedPlateData | None:
-    """The yawed plates (yaw != 0) of a CSV with YAW_COLUMNS, or None if it has none."""
+def read_plates(path: str | os.PathLike) -> tuple[PlateData, YawedPlateData | None]:
+    """(the in-plane plates, the yawed plates or None) of one reading of the CSV: without
+    YAW_COLUMNS every row is in-plane; with them, the rows at yaw 0 and the others."""
     values, yawed = _read(Path(path))
-    if yawed is None or not np.any(yawed[:, 0] != 0.0):
-        return None
-    on = yawed[:, 0] != 0.0
-    beta, gamma, depth, area, fx, fz = values[on].T
-    return YawedPlateData(beta * DEG, gamma * DEG, yawed[on, 0] * DEG, depth, area, fx,
-                          yawed[on, 1], fz)  # fmt: skip
+    flat = np.ones(len(values), dtype=bool) if yawed is None else yawed[:, 0] == 0.0
+    beta_deg, gamma_deg, depth, area, fx, fz = values.T
+    beta, gamma = beta_deg * DEG, gamma_deg * DEG
+    plates = PlateData(beta[flat], gamma[flat], depth[flat], area[flat], fx[flat], fz[flat])
+    if flat.all():
+        return plates, None
+    on = ~flat
+    return plates, YawedPlateData(beta[on], gamma[on], yawed[on, 0] * DEG, depth[on], area[on],
+                                  fx[on], yawed[on, 1], fz[on])  # fmt: skip
 
 
 def _read(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
