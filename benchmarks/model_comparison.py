@@ -18,7 +18,6 @@ Writes docs/model_comparison.png and benchmarks/results/model_comparison.csv.
 
 from __future__ import annotations
 
-import csv
 import warnings
 from pathlib import Path
 
@@ -28,7 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import mujoco
 import numpy as np
-from pareto import ellipsoid_rig_motion, root_rig_motion, root_shape
+from pareto import ellipsoid_rig_motion, root_rig_motion, root_shape, write_csv
 
 from mjrft import Material, geometry, simulate
 from mjrft.app import demos
@@ -148,10 +147,7 @@ def main() -> None:
                  "pushed down) and the dynamic term (rho_c = 1500 kg/m^3)")  # fmt: skip
     fig.tight_layout()
     fig.savefig(ROOT / "docs" / "model_comparison.png", dpi=110)
-    with open(OUT / "model_comparison.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(OUT / "model_comparison.csv", rows)
 
 
 if __name__ == "__main__":

@@ -15,10 +15,9 @@ Writes benchmarks/results/rig_target.csv.
 from __future__ import annotations
 
 import argparse
-import csv
 
 from field_overhead import MODELS, OUT, state_at, time_pairs
-from pareto import REF_TRIANGLES, Case, _shapes, ellipsoid_rig_motion
+from pareto import REF_TRIANGLES, Case, _shapes, ellipsoid_rig_motion, write_csv
 
 from mjrft import simulate
 from mjrft.field import GranularField
@@ -55,10 +54,7 @@ def main() -> None:
     if ok:
         r = min(ok, key=lambda r: r["triangles"])
         print(f"smallest count at <= 1 %: {r['triangles']} triangles, deep {r['deep_ratio']:.2f}x")
-    with open(OUT / "rig_target.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(OUT / "rig_target.csv", rows)
 
 
 if __name__ == "__main__":
