@@ -21,6 +21,7 @@ import numpy as np
 import mjrft
 from mjrft import Material
 from mjrft.core import agarwal
+from mjrft.core.material import AGARWAL_PLATE_DOWN
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import agarwal_reference
@@ -56,7 +57,7 @@ def main() -> None:
             for name, c in table.items():
                 setattr(agarwal, name, tuple(c))  # the reference reads the module's table
             plate = -sum(sum(c) for c in table.values())
-            xi_t = xi * material_plate(published) / plate
+            xi_t = xi * AGARWAL_PLATE_DOWN / plate  # this table's plate pushed down = Li's
             f = np.array([agarwal_reference.element_force(*e, xi_t, 10.0)
                           for e in zip(pos, normal, area, vel, strict=True)])  # fmt: skip
             err = np.sqrt(((f - f_li) ** 2).sum(1).mean()) / rms_li
@@ -65,10 +66,6 @@ def main() -> None:
     finally:
         for name, c in published.items():
             setattr(agarwal, name, c)
-
-
-def material_plate(table) -> float:
-    return -sum(sum(c) for c in table.values())
 
 
 if __name__ == "__main__":
