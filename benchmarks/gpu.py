@@ -1,0 +1,140 @@
+"""Batched MuJoCo Warp with the granular field (mjrft.warp): physics steps per second vs nworld.
+
+Run: python benchmarks/gpu.py [--device cuda:0] [--nworld 1 16 ...] [--steps N]
+For each model (the hexapod standing in the medium, the ellipsoid rig driven into it) and each
+nworld: steps per second summed over worlds with the field off and on, and the per-step split
+(MuJoCo Warp's step with the field off vs the field's own pass, `WarpField.compute` + `apply`).
+On a CUDA device each timed loop is one captured CUDA graph of N steps, replayed (the first
+replay is discarded); on the CPU device the steps are launched one by one. Every figure is the
+median of --repeats timings. Writes benchmarks/results/gpu.csv.
+
+Default nworld: 1 to 16384 by factors of 4 on a GPU, 1 to 16 on the CPU device.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import platform
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import warp as wp
+
+wp.config.quiet = True
+
+import mujoco_warp as mjw  # noqa: E402
+
+wp.config.quiet = True  # (importing MuJoCo Warp turns Warp's per-module messages back on)
+
+from mjrft.app import metadata  # noqa: E402
+from mjrft.warp import WarpField  # noqa: E402
+
+OUT = Path(__file__).resolve().parent / "results"
+MODELS = Path(__file__).resolve().parents[1] / "models"
+FIELDS = ("model", "nworld", "triangles", "field", "steps_per_s", "step_us", "rft_us", "rft_share")
+
+
+def initial_state(name: str, mjm: mujoco.MjModel, mjd: mujoco.MjData, nworld: int):
+    """(nworld, nq), (nworld, nv): the worlds start in the medium, each a little different."""
+    rng = np.random.default_rng(0)
+    qpos = np.tile(mjd.qpos, (nworld, 1))
+    qvel = np.zeros((nworld, mjm.nv))
+    if name == "hexapod_sand":  # torso lowered: the legs stand in the medium
+        qpos[:, 2] = 0.03 + 0.002 * rng.uniform(-1, 1, nworld)
+    else:
+        qvel[:] = 0.1 * rng.normal(size=qvel.shape)
+    return qpos, qvel
+
+
+def timed(device, fn, steps: int, repeats: int) -> float:
+    """Median seconds for `steps` calls of fn (one CUDA graph of them on a GPU)."""
+    if device.is_cuda:
+        with wp.ScopedCapture(device=device) as capture:
+            for _ in range(steps):
+                fn()
+        graph = capture.graph
+        wp.capture_launch(graph)  # first replay: not timed
+        run = lambda: wp.capture_launch(graph)  # noqa: E731
+    else:
+        fn()
+        run = lambda: [fn() for _ in range(steps)]  # noqa: E731
+    wp.synchronize_device(device)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        run()
+        wp.synchronize_device(device)
+        times.append(time.perf_counter() - t)
+    return float(np.median(times))
+
+
+def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[dict]:
+    mjm = mujoco.MjModel.from_xml_path(str(MODELS / f"{name}.xml"))
+    mjd = mujoco.MjData(mjm)
+    if mjm.nkey:
+        mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
+    field = WarpField(mjm, device=str(device))
+    qpos, qvel = initial_state(name, mjm, mjd, nworld)
+    with wp.ScopedDevice(device):
+        m = mjw.put_model(mjm)
+        d = mjw.put_data(mjm, mjd, nworld=nworld)
+        d.qpos.assign(qpos.astype(np.float32))
+        d.qvel.assign(qvel.astype(np.float32))
+        field.prepare(d)
+        mjw.forward(m, d)
+        off = timed(device, lambda: mjw.step(m, d), steps, repeats)
+        rft = timed(device, lambda: field.passive(m, d), steps, repeats)
+        field.install(m)
+        on = timed(device, lambda: mjw.step(m, d), steps, repeats)
+        field.uninstall(m)
+    rows = []
+    for label, t in (("off", off), ("on", on)):
+        rows.append(
+            {
+                "model": name, "nworld": nworld, "triangles": field.nelem, "field": label,
+                "steps_per_s": f"{nworld * steps / t:.4g}", "step_us": f"{t / steps * 1e6:.1f}",
+                "rft_us": f"{rft / steps * 1e6:.1f}" if label == "on" else "",
+                "rft_share": f"{rft / on:.3f}" if label == "on" else "",
+            }
+        )  # fmt: skip
+    return rows
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--device", default=None, help="Warp device (default: cuda:0 if present)")
+    ap.add_argument("--nworld", type=int, nargs="+", default=None)
+    ap.add_argument("--models", nargs="+", default=["hexapod_sand", "ellipsoid_pitch"])
+    ap.add_argument("--steps", type=int, default=100, help="steps per timed loop")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--out", type=Path, default=OUT / "gpu.csv")
+    args = ap.parse_args(argv)
+    device = wp.get_device(args.device or ("cuda:0" if wp.is_cuda_available() else "cpu"))
+    nworlds = args.nworld or ([4**k for k in range(8)] if device.is_cuda else [1, 4, 16])
+    cpu = metadata.machine()["cpu"] or platform.machine()
+    print(f"device: {device} ({device.name}); CPU: {cpu}, {os.cpu_count()} cores; "
+          f"warp {wp.__version__}; steps {args.steps}, medians of {args.repeats}")  # fmt: skip
+    print(f"{'model':16s} {'nworld':>7s} {'field':>5s} {'steps/s':>10s} {'us/step':>9s} "
+          f"{'rft us':>8s} {'rft share':>9s}")  # fmt: skip
+    rows = []
+    for name in args.models:
+        for nworld in nworlds:
+            for r in measure(name, nworld, device, args.steps, args.repeats):
+                rows.append(r)
+                print(f"{r['model']:16s} {r['nworld']:7d} {r['field']:>5s} "
+                      f"{r['steps_per_s']:>10s} {r['step_us']:>9s} {r['rft_us']:>8s} "
+                      f"{r['rft_share']:>9s}", flush=True)  # fmt: skip
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with open(args.out, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=FIELDS)
+        w.writeheader()
+        w.writerows(rows)
+    return rows
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,448 @@
+"""``WarpField``: the granular field's static tables on a Warp device and its per-pass kernels.
+
+Each pass, for the ``nworld`` worlds of an ``mjw.Data``: ``cull_kernel`` (nworld x tagged geoms)
+marks the geoms whose bounding sphere is above the surface or outside the region, as the CPU
+field's ``culled``; ``element_kernel`` (nworld x elements) evaluates every element of a geom in
+play at its quadrature point (``mjrft.warp.quadrature``) and adds its force and torque to its
+body's wrench; ``apply_kernel`` (nworld x tagged bodies) writes user part + RFT wrench into
+``xfrc_applied`` (``mjrft.field.ownership``'s per-component rule). The element law runs in
+float64 whatever MuJoCo Warp's own precision (float32): poses and velocities are widened on load.
+
+Frames: element tables in the body frame; everything per world in the world frame; wrenches
+are force [N] then torque [N m] about the body's CoM (``xipos``), ``xfrc_applied``'s layout.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import weakref
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import warp as wp
+
+from mjrft.core import surface
+from mjrft.core.material import Material
+from mjrft.field.granular_field import GranularField
+from mjrft.field.scene import SceneError
+from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
+from mjrft.warp.quadrature import quadrature_point
+
+
+class UnsupportedScene(SceneError):
+    """The scene uses a feature the Warp field does not have yet; the message names it."""
+
+
+# --------------------------------------------------------------------------------- kernels
+@wp.struct
+class Medium:
+    """The medium and its extent: combined coefficients co (18,), alpha_y, zeta [N/m^3], the
+    dynamic term's lambda rho_c [kg/m^3] (0: off), the flat surface's height [m] and the region
+    box [m] (used if use_region); world frame."""
+
+    co: wp.array(dtype=f64)
+    ay: f64
+    zeta: f64
+    lam_rho: f64
+    surface_z: f64
+    use_region: int
+    region_lo: vec3d
+    region_hi: vec3d
+
+
+@wp.kernel
+def cull_kernel(
+    # Model
+    tgeom_geomid: wp.array(dtype=int), tgeom_rbound: wp.array(dtype=f64), medium: Medium,
+    # Data in
+    geom_xpos: wp.array2d(dtype=wp.vec3),
+    # Data out
+    cull: wp.array2d(dtype=int),
+):  # fmt: skip
+    """cull[w, g] = 1 if tagged geom g of world w cannot touch the medium (mjrft.field.evaluate
+    ``culled``: bounding sphere above the flat surface or outside the region; radius 0 never)."""
+    w, g = wp.tid()
+    r = tgeom_rbound[g]
+    out = int(0)
+    if r > f64(0.0):
+        p = geom_xpos[w, tgeom_geomid[g]]
+        c = vec3d(f64(p[0]), f64(p[1]), f64(p[2]))
+        if c[2] - r >= medium.surface_z:
+            out = 1
+        if medium.use_region != 0:
+            for i in range(3):
+                if c[i] + r < medium.region_lo[i] or c[i] - r > medium.region_hi[i]:
+                    out = 1
+    cull[w, g] = out
+
+
+@wp.func
+def widen(v: wp.vec3) -> vec3d:
+    return vec3d(f64(v[0]), f64(v[1]), f64(v[2]))
+
+
+@wp.kernel
+def element_kernel(
+    # Model
+    elem_pos: wp.array(dtype=vec3d), elem_normal: wp.array(dtype=vec3d),
+    elem_area: wp.array(dtype=f64), elem_reach: wp.array(dtype=f64),
+    elem_patch: wp.array2d(dtype=f64), elem_tgeom: wp.array(dtype=int),
+    tgeom_tbody: wp.array(dtype=int), tbody_bodyid: wp.array(dtype=int),
+    tbody_rootid: wp.array(dtype=int), medium: Medium, store: int,
+    # Data in
+    xpos: wp.array2d(dtype=wp.vec3), xmat: wp.array2d(dtype=wp.mat33),
+    xipos: wp.array2d(dtype=wp.vec3), cvel: wp.array2d(dtype=wp.spatial_vector),
+    subtree_com: wp.array2d(dtype=wp.vec3), cull: wp.array2d(dtype=int),
+    # Data out
+    force_out: wp.array2d(dtype=vec3d), torque_out: wp.array2d(dtype=vec3d),
+    elem_force: wp.array2d(dtype=vec3d),
+):  # fmt: skip
+    """Element i of world w at its quadrature point: its force into elem_force (if store) and
+    its force and torque about the CoM into its body's row of force_out, torque_out (atomic
+    adds)."""
+    w, i = wp.tid()
+    g = elem_tgeom[i]
+    f = vec3d(f64(0.0), f64(0.0), f64(0.0))
+    if cull[w, g] == 0:
+        k = tgeom_tbody[g]
+        b = tbody_bodyid[k]
+        m = xmat[w, b]
+        rot = wp.mat33d(
+            f64(m[0, 0]), f64(m[0, 1]), f64(m[0, 2]),
+            f64(m[1, 0]), f64(m[1, 1]), f64(m[1, 2]),
+            f64(m[2, 0]), f64(m[2, 1]), f64(m[2, 2]),
+        )  # fmt: skip
+        # cvel = [omega, v] with v at the subtree CoM of the body's root (docs/design.md 3).
+        tw = cvel[w, b]
+        omega = vec3d(f64(tw[0]), f64(tw[1]), f64(tw[2]))
+        v_ref = vec3d(f64(tw[3]), f64(tw[4]), f64(tw[5]))
+        q = quadrature_point(
+            elem_pos[i], elem_normal[i], elem_area[i], elem_reach[i], elem_patch, i, rot,
+            widen(xpos[w, b]), omega, v_ref, widen(subtree_com[w, tbody_rootid[k]]),
+            medium.surface_z, medium.use_region, medium.region_lo, medium.region_hi,
+        )  # fmt: skip
+        if q.w > f64(0.0):
+            f = element_force(q.n, q.v, q.w, q.a, medium.co, medium.ay, medium.zeta, medium.lam_rho)
+            if f[0] != f64(0.0) or f[1] != f64(0.0) or f[2] != f64(0.0):
+                wp.atomic_add(force_out, w, k, f)
+                wp.atomic_add(torque_out, w, k, wp.cross(q.p - widen(xipos[w, b]), f))
+    if store != 0:
+        elem_force[w, i] = f
+
+
+@wp.kernel
+def apply_kernel(
+    # Model
+    tbody_bodyid: wp.array(dtype=int),
+    # Data in
+    force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
+    # Data in and out
+    user: wp.array2d(dtype=wp.spatial_vector), written: wp.array2d(dtype=wp.spatial_vector),
+    xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+):  # fmt: skip
+    """xfrc_applied row of tagged body k = user part + RFT wrench; a component that no longer
+    holds what was written there was assigned by the user and becomes the user part
+    (mjrft.field.ownership)."""
+    w, k = wp.tid()
+    b = tbody_bodyid[k]
+    cur = xfrc_applied[w, b]
+    old = written[w, k]
+    u = user[w, k]
+    f = force[w, k]
+    t = torque[w, k]
+    out = wp.spatial_vector()
+    for c in range(6):
+        uc = u[c]
+        if cur[c] != old[c]:
+            uc = cur[c]
+        u[c] = uc
+        rft = f64(0.0)
+        if c < 3:
+            rft = f[c]
+        else:
+            rft = t[c - 3]
+        out[c] = uc + float(rft)
+    user[w, k] = u
+    written[w, k] = out
+    xfrc_applied[w, b] = out
+
+
+# ------------------------------------------------------------------------------ the field
+def check_memory(nworld: int, bytes_per_world: int, device, free: int) -> None:
+    """Raise MemoryError, before allocating, if nworld worlds of the field's arrays
+    (bytes_per_world each) exceed the device's free memory [bytes]."""
+    need = nworld * bytes_per_world
+    if need > free:
+        raise MemoryError(
+            f"mjrft.warp: nworld={nworld} needs {need / 2**20:.0f} MiB for the field "
+            f"({bytes_per_world} B per world) but {device} has {free / 2**20:.0f} MiB free; "
+            "use fewer worlds, or store_element_forces=False"
+        )
+
+
+def _supported(gf: GranularField) -> None:
+    """Raise UnsupportedScene naming the first feature of gf's scene the Warp field lacks."""
+    m = gf.scene.material
+    if not m.compiled or m.fourier is None:
+        what = "the agarwal3d force model" if m.agarwal is not None else "a callable material"
+        raise UnsupportedScene(
+            f"mjrft.warp: {what} ({m.name!r}) is not supported yet; the Warp field evaluates "
+            "Fourier-form media under the treers2021 model (a preset or mjrft:coefficients)"
+        )
+    kind = int(gf.scene.surface.prm[surface.KIND])
+    if kind != surface.FLAT:
+        what = {surface.PLANE: "a tilted plane (mjrft:slope)", surface.GRID: "a height field "
+                "surface (mjrft:hfield)", surface.SOIL: "the deforming ground "
+                "(mjrft:deform_cell)"}[kind]  # fmt: skip
+        raise UnsupportedScene(
+            f"mjrft.warp: {what} is not supported yet; the Warp field has the flat surface "
+            "only (mjrft:surface_z)"
+        )
+
+
+@dataclass
+class _Worlds:
+    """Per-``mjw.Data`` arrays of the field (nworld rows each)."""
+
+    nworld: int
+    cull: wp.array  # (nworld, ntgeom) int
+    force: wp.array  # (nworld, ntbody) vec3d [N], world frame
+    torque: wp.array  # (nworld, ntbody) vec3d [N m] about each body's CoM
+    user: wp.array  # (nworld, ntbody) spatial_vector: the user part of xfrc_applied's rows
+    written: wp.array  # (nworld, ntbody) spatial_vector: what the field last wrote there
+    elem_force: wp.array  # (nworld, nelem) vec3d [N], or (1, 1) if not stored
+    owner: weakref.ref  # the mjw.Data these belong to
+
+
+class WarpField:
+    """The granular field for MuJoCo Warp: one scene, any number of worlds, on one device.
+
+    Args:
+      model: the compiled MjModel whose ``<custom>`` describes the scene (as GranularField).
+      material, n_triangles, tolerance, dynamic: as ``GranularField``.
+      device: the Warp device (default: Warp's default device).
+      store_element_forces: keep each element's force per world (``element_forces_of``);
+        costs nworld x elements x 24 bytes of device memory.
+    Raises:
+      UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
+      model, callable materials, uneven or deforming ground. SceneError as GranularField.
+
+    The Warp field has no low-speed treatment (the CPU field's "stick" and mechanism
+    treatments): it is the pure model, as ``GranularField(low_speed="off")``, and it evaluates
+    elements with the CPU field's quadrature (mjrft.warp.quadrature).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        material: Material | str | None = None,
+        *,
+        n_triangles: int | None = None,
+        tolerance: float | None = None,
+        dynamic: float | tuple[float, float] | None = None,
+        device: str | None = None,
+        store_element_forces: bool = False,
+    ) -> None:
+        gf = GranularField(
+            model, material, n_triangles=n_triangles, tolerance=tolerance, low_speed="off",
+            dynamic=dynamic,
+        )  # fmt: skip
+        _supported(gf)
+        self.model = model
+        #: The CPU field of the same scene (tables, meshes, element states for comparison).
+        self.cpu = gf
+        self.device = wp.get_device(device)
+        self.store_element_forces = bool(store_element_forces)
+        fm = gf._tables.arrays
+        self.body_ids = np.asarray(fm.tbody_bodyid, dtype=np.int64)
+        self.nelem = int(fm.elem_area.shape[0])
+        self.ntgeom = int(fm.tgeom_geomid.shape[0])
+        self.ntbody = int(self.body_ids.shape[0])
+        elem_tgeom = np.repeat(np.arange(self.ntgeom), fm.tgeom_elemnum)
+        mat = gf.scene.material
+        region = np.asarray(fm.region, dtype=np.float64)
+        dev = self.device
+
+        def arr(x, dtype):
+            return wp.array(np.ascontiguousarray(x), dtype=dtype, device=dev)
+
+        self._elem_pos = arr(fm.elem_pos, vec3d)
+        self._elem_normal = arr(fm.elem_normal, vec3d)
+        self._elem_area = arr(fm.elem_area, f64)
+        self._elem_tgeom = arr(elem_tgeom.astype(np.int32), int)
+        self._tgeom_geomid = arr(np.asarray(fm.tgeom_geomid, dtype=np.int32), int)
+        self._tgeom_rbound = arr(fm.tgeom_rbound, f64)
+        self._tgeom_tbody = arr(np.asarray(fm.tgeom_tbody, dtype=np.int32), int)
+        self._tbody_bodyid = arr(self.body_ids.astype(np.int32), int)
+        self._tbody_rootid = arr(np.asarray(fm.tbody_rootid, dtype=np.int32), int)
+        self._elem_reach = arr(fm.elem_reach, f64)
+        self._elem_patch = arr(fm.elem_patch, f64)
+        self._medium = Medium()
+        self._medium.co = arr(np.asarray(fm.coef[:18], dtype=np.float64), f64)
+        self._medium.ay = f64(fm.alpha_y)
+        self._medium.zeta = f64(fm.zeta)
+        self._medium.lam_rho = f64(mat.dynamic)
+        self._medium.surface_z = f64(fm.surface_z)
+        self._medium.use_region = int(fm.use_region)
+        self._medium.region_lo = vec3d(*region[0])
+        self._medium.region_hi = vec3d(*region[1])
+        self._worlds: dict[int, _Worlds] = {}
+
+    # ------------------------------------------------------------------ per-Data state
+    def bytes_per_world(self) -> int:
+        """Device memory [bytes] the field's arrays take per world."""
+        per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24)
+        return per + (self.nelem * 24 if self.store_element_forces else 0)
+
+    def _worlds_of(self, d) -> _Worlds:
+        st = self._worlds.get(id(d))
+        if st is not None and st.owner() is d:
+            return st
+        nworld = int(d.nworld)
+        if self.device.is_cuda:
+            check_memory(nworld, self.bytes_per_world(), self.device, self.device.free_memory)
+        dev = self.device
+        ne = (nworld, self.nelem) if self.store_element_forces else (1, 1)
+        xfrc = d.xfrc_applied.numpy()[:, self.body_ids]  # what is there now is the user's
+        st = _Worlds(
+            nworld=nworld,
+            cull=wp.zeros((nworld, self.ntgeom), dtype=int, device=dev),
+            force=wp.zeros((nworld, self.ntbody), dtype=vec3d, device=dev),
+            torque=wp.zeros((nworld, self.ntbody), dtype=vec3d, device=dev),
+            user=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
+            written=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
+            elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
+            owner=weakref.ref(d),
+        )
+        self._worlds[id(d)] = st
+        return st
+
+    def prepare(self, d) -> None:
+        """Allocate the field's arrays for d now (before capturing a CUDA graph of mjw.step)."""
+        self._worlds_of(d)
+
+    # ------------------------------------------------------------------ the pass
+    def compute(self, d) -> None:
+        """Every world's RFT wrenches from d's current kinematics (after MuJoCo Warp's position
+        and velocity stages: xpos, xmat, xipos, cvel, subtree_com, geom_xpos); read them with
+        ``wrenches``. Launches two kernels; graph-capturable once ``prepare(d)`` ran."""
+        st = self._worlds_of(d)
+        dev = self.device
+        wp.launch(
+            cull_kernel, dim=(st.nworld, self.ntgeom),
+            inputs=[self._tgeom_geomid, self._tgeom_rbound, self._medium, d.geom_xpos],
+            outputs=[st.cull], device=dev,
+        )  # fmt: skip
+        st.force.zero_()
+        st.torque.zero_()
+        wp.launch(
+            element_kernel, dim=(st.nworld, self.nelem),
+            inputs=[self._elem_pos, self._elem_normal, self._elem_area, self._elem_reach,
+                    self._elem_patch, self._elem_tgeom, self._tgeom_tbody, self._tbody_bodyid,
+                    self._tbody_rootid, self._medium, int(self.store_element_forces), d.xpos,
+                    d.xmat, d.xipos, d.cvel, d.subtree_com, st.cull],
+            outputs=[st.force, st.torque, st.elem_force], device=dev,
+        )  # fmt: skip
+
+    def apply(self, d) -> None:
+        """Write user part + the last ``compute``'s wrench into d.xfrc_applied's tagged rows."""
+        st = self._worlds_of(d)
+        wp.launch(
+            apply_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._tbody_bodyid, st.force, st.torque],
+            outputs=[st.user, st.written, d.xfrc_applied], device=self.device,
+        )  # fmt: skip
+
+    def passive(self, m, d) -> None:
+        """MuJoCo Warp's passive callback: ``compute`` then ``apply`` (``install``)."""
+        self.compute(d)
+        self.apply(d)
+
+    def install(self, m) -> None:
+        """Make the field mjw.Model m's passive callback (chained after any callback already
+        there), so every forward pass of ``mjw.step`` applies it."""
+        prev = m.callback.passive
+        if getattr(prev, "__self__", None) is self:
+            return
+
+        def chained(m_, d_):
+            prev(m_, d_)
+            self.passive(m_, d_)
+
+        m.callback.passive = self.passive if prev is None else chained
+        self._prev = prev
+
+    def uninstall(self, m, d=None) -> None:
+        """Undo ``install``; with d, also give d's tagged rows of xfrc_applied back their user
+        part."""
+        m.callback.passive = getattr(self, "_prev", None)
+        if d is not None:
+            st = self._worlds_of(d)
+            st.force.zero_()
+            st.torque.zero_()
+            self.apply(d)
+
+    @contextlib.contextmanager
+    def installed(self, m, d=None):
+        """``with field.installed(m, d): mjw.step(m, d)``: installed inside, uninstalled on
+        exit (d's xfrc_applied rows get their user part back)."""
+        self.install(m)
+        try:
+            yield self
+        finally:
+            self.uninstall(m, d)
+
+    # ------------------------------------------------------------------ results
+    def wrenches(self, d) -> np.ndarray:
+        """(nworld, nbody, 6) the last pass's RFT wrench per world and body, ``xfrc_applied``
+        layout: force [N] then torque [N m] about the CoM, world frame (float64; a copy)."""
+        st = self._worlds_of(d)
+        out = np.zeros((st.nworld, self.model.nbody, 6))
+        out[:, self.body_ids, :3] = st.force.numpy()
+        out[:, self.body_ids, 3:] = st.torque.numpy()
+        return out
+
+    def element_forces_of(self, d) -> np.ndarray:
+        """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the CPU field's
+        element order (``store_element_forces=True``)."""
+        if not self.store_element_forces:
+            raise ValueError("element forces are kept only with store_element_forces=True")
+        return self._worlds_of(d).elem_force.numpy()
+
+
+def element_forces(
+    pos: np.ndarray,
+    normal: np.ndarray,
+    area: np.ndarray,
+    vel: np.ndarray,
+    material: Material,
+    surface_z: float = 0.0,
+    device: str | None = None,
+) -> np.ndarray:
+    """``mjrft.element_forces`` evaluated by the Warp law (float64) on a Warp device.
+
+    Args: (n, 3) centroids [m], (n, 3) unit normals, (n,) areas [m^2], (n, 3) velocities
+    [m/s], all world frame; material (Fourier form, treers2021); surface_z [m].
+    Returns: (n, 3) forces [N], world frame.
+    """
+    if not material.compiled or material.fourier is None:
+        raise UnsupportedScene(
+            f"mjrft.warp.element_forces: material {material.name!r} is not a Fourier-form "
+            "medium under the treers2021 model"
+        )
+    dev = wp.get_device(device)
+    n = len(area)
+
+    def arr(x, dtype):
+        return wp.array(np.ascontiguousarray(x, dtype=np.float64), dtype=dtype, device=dev)
+
+    out = wp.zeros(n, dtype=vec3d, device=dev)
+    wp.launch(
+        forces_kernel, dim=n,
+        inputs=[arr(material.kernel_coefficients[:18], f64), f64(material.alpha_y0),
+                f64(material.zeta), f64(material.dynamic), f64(surface_z), arr(pos, vec3d),
+                arr(normal, vec3d), arr(area, f64), arr(vel, vec3d)],
+        outputs=[out], device=dev,
+    )  # fmt: skip
+    return out.numpy()

@@ -1,0 +1,320 @@
+"""mjrft.warp on Warp's CPU device: the same RFT forces as the CPU field, world by world.
+
+Warp compiles each kernel module once and caches it (~/.cache/warp); MuJoCo Warp's own step
+compiles for a few seconds per model on first use.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+pytest.importorskip("warp")
+pytest.importorskip("mujoco_warp")
+
+import mujoco_warp as mjw
+import warp as wp
+
+import mjrft
+import mjrft.warp as mw
+from mjrft import Material
+from mjrft.app.simulate import models_dir
+from mjrft.field import GranularField
+
+DEVICE = "cpu"
+wp.config.quiet = True  # no line per kernel module loaded
+# The Warp law is the CPU law's equations in float64 with libm tanh and log (the CPU kernel
+# uses polynomials accurate to ~2e-15): the two agree to rounding.
+RTOL_LAW = 1e-12
+# Wrenches: the same quadrature on the same states, summed in another order.
+RTOL_WRENCH = 1e-12
+# Trajectories: MuJoCo Warp steps in float32 (single-precision kinematics, constraint solver
+# and integration), the CPU reference in float64; over 200 steps of 1 ms the measured gap is
+# 1.9e-5 m (hexapod), 6e-7 rad (ellipsoid rig) and 2e-6 m (sphere); this bound leaves 5x.
+ATOL_QPOS = 1e-4
+NWORLD = 4
+
+
+def random_elements(rng, n):
+    normal = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    normal[: n // 20] = [0.0, 0.0, 1.0]  # horizontal plates: the frame from v
+    normal[n // 20 : n // 10] = [0.0, 0.0, -1.0]
+    vel = rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-3, 0.5, (n, 1))
+    vel[: n // 40, :2] = 0.0  # horizontal plates moving straight up or down: world x frame
+    vel[n // 10 : n // 10 + 10] = 0.0  # at rest
+    pos = rng.uniform(-0.05, 0.05, (n, 3))
+    pos[:, 2] = rng.uniform(-0.05, 0.01, n)
+    area = rng.uniform(1e-6, 1e-4, n)
+    return pos, normal, area, vel
+
+
+def assert_forces_close(got, want, rtol):
+    scale = np.linalg.norm(want, axis=1)
+    err = np.linalg.norm(got - want, axis=1)
+    assert np.all(err <= rtol * scale), (err / np.maximum(scale, 1e-300)).max()
+
+
+@pytest.mark.parametrize("dynamic", [False, True])
+@pytest.mark.parametrize("preset", ["glass_beads", "poppy_seeds_lp"])
+def test_the_warp_law_equals_element_forces(preset, dynamic):
+    rng = np.random.default_rng(11)
+    pos, normal, area, vel = random_elements(rng, 20_000)
+    material = Material.preset(preset)
+    if dynamic:
+        material = material.with_dynamic(1500.0, 0.8)
+    want = mjrft.element_forces(pos, normal, area, vel, material, surface_z=0.002)
+    got = mw.element_forces(pos, normal, area, vel, material, surface_z=0.002, device=DEVICE)
+    assert np.count_nonzero(np.any(want != 0.0, axis=1)) > 5000  # the test has teeth
+    assert_forces_close(got, want, RTOL_LAW)
+
+
+def load(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    mjm = mujoco.MjModel.from_xml_path(str(models_dir() / f"{name}.xml"))
+    mjd = mujoco.MjData(mjm)
+    if mjm.nkey:
+        mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
+    return mjm, mjd
+
+
+def initial_states(name, mjm, mjd):
+    """(NWORLD, nq), (NWORLD, nv): four different states that intrude."""
+    qpos = np.tile(mjd.qpos, (NWORLD, 1))
+    qvel = np.zeros((NWORLD, mjm.nv))
+    for w in range(NWORLD):
+        if name == "sphere_drop":  # lowered, thrown sideways and spinning
+            qpos[w, 2] = 0.008 - 0.005 * w
+            qvel[w, :6] = [0.1 * w, 0.0, -0.2, 0.0, 3.0, 0.0]
+        elif name == "hexapod_sand":  # the torso lowered so that the legs stand in the medium
+            qpos[w, 2] = 0.035 - 0.004 * w
+            qvel[w, :3] = [0.05 * w, 0.0, -0.1]
+        else:  # the ellipsoid rig: every joint moving
+            qvel[w] = 0.5 * (w + 1) * np.random.default_rng(w).normal(size=mjm.nv)
+    return qpos, qvel
+
+
+def put(mjm, mjd, qpos, qvel):
+    m = mjw.put_model(mjm)
+    d = mjw.put_data(mjm, mjd, nworld=len(qpos))
+    d.qpos.assign(qpos.astype(np.float32))
+    d.qvel.assign(qvel.astype(np.float32))
+    return m, d
+
+
+def world_kinematics(mjd, d, w):
+    """Put world w's MuJoCo Warp kinematics into mjd (float32 values, held in float64)."""
+    for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
+        dst = getattr(mjd, name)
+        dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
+
+
+@pytest.mark.parametrize("name", ["sphere_drop", "hexapod_sand", "ellipsoid_pitch"])
+def test_wrenches_equal_the_cpu_field_on_the_same_states(name):
+    mjm, mjd = load(name)
+    field = mw.WarpField(mjm, device=DEVICE, store_element_forces=True)
+    qpos, qvel = initial_states(name, mjm, mjd)
+    m, d = put(mjm, mjd, qpos, qvel)
+    if name == "ellipsoid_pitch":  # drive the rig into the medium first
+        field.install(m)
+        for _ in range(300):
+            mjw.step(m, d)
+    mjw.forward(m, d)
+    field.compute(d)
+    got = field.wrenches(d)
+    elem = field.element_forces_of(d)
+    cpu = GranularField(mjm, low_speed="off")
+    sizes = [len(b.areas) for b in cpu.bodies]
+    offsets = {b.body: int(o) for b, o in zip(cpu.bodies, np.cumsum([0, *sizes[:-1]]), strict=True)}
+    acting = 0
+    for w in range(NWORLD):
+        world_kinematics(mjd, d, w)
+        want = cpu.wrench(mjd)
+        assert np.abs(want).max() > 0.0
+        np.testing.assert_allclose(got[w], want, rtol=0, atol=RTOL_WRENCH * np.abs(want).max())
+        for st in cpu.element_states(mjd):  # per element, where the CPU field evaluated
+            offset = offsets[st.body]  # the Warp field's elements: the bodies' blocks in order
+            assert_forces_close(elem[w, offset + st.index], st.force, RTOL_WRENCH)
+            acting += np.count_nonzero(np.any(st.force != 0.0, axis=1))
+    assert acting > 50
+
+
+def cpu_trajectory(mjm, mjd, cpu, qpos, qvel, nstep):
+    """qpos after nstep steps of mj_step with the CPU field applied explicitly (held over the
+    step, as the passive callback holds it in an Euler step)."""
+    if mjm.nkey:
+        mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
+    else:
+        mujoco.mj_resetData(mjm, mjd)
+    mjd.qpos[:] = qpos
+    mjd.qvel[:] = qvel
+    for _ in range(nstep):
+        mujoco.mj_forward(mjm, mjd)
+        mjd.xfrc_applied[:] = cpu.wrench(mjd)
+        mujoco.mj_step(mjm, mjd)
+    return mjd.qpos.copy()
+
+
+@pytest.mark.parametrize(
+    ("name", "nstep"), [("sphere_drop", 60), ("hexapod_sand", 200), ("ellipsoid_pitch", 200)]
+)
+def test_trajectories_follow_the_cpu_field_world_by_world(name, nstep):
+    mjm, mjd = load(name)
+    assert mjm.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    field = mw.WarpField(mjm, device=DEVICE)
+    qpos, qvel = initial_states(name, mjm, mjd)
+    m, d = put(mjm, mjd, qpos, qvel)
+    with field.installed(m, d):
+        for _ in range(nstep):
+            mjw.step(m, d)
+    got = d.qpos.numpy()
+    cpu = GranularField(mjm, low_speed="off")
+    for w in range(NWORLD):
+        want = cpu_trajectory(mjm, mjd, cpu, qpos[w], qvel[w], nstep)
+        moved = np.abs(want - qpos[w]).max()
+        assert moved > 20 * ATOL_QPOS  # the run goes somewhere
+        np.testing.assert_allclose(got[w], want, rtol=0, atol=ATOL_QPOS)
+
+
+def test_a_geom_above_the_surface_is_culled_and_feels_nothing():
+    mjm, mjd = load("sphere_drop")
+    field = mw.WarpField(mjm, device=DEVICE, store_element_forces=True)
+    qpos = np.tile(mjd.qpos, (2, 1))
+    qpos[0, 2] = 0.05  # 4 cm above the surface
+    qpos[1, 2] = -0.005
+    qvel = np.zeros((2, mjm.nv))
+    qvel[:, 2] = -0.1
+    m, d = put(mjm, mjd, qpos, qvel)
+    mjw.forward(m, d)
+    field.compute(d)
+    cull = field._worlds_of(d).cull.numpy()
+    assert cull[0, 0] == 1 and cull[1, 0] == 0
+    w = field.wrenches(d)
+    assert np.all(w[0] == 0.0) and w[1, 1, 2] > 0.0
+    assert np.all(field.element_forces_of(d)[0] == 0.0)
+
+
+def test_the_users_part_of_xfrc_applied_survives():
+    mjm, mjd = load("sphere_drop")
+    field = mw.WarpField(mjm, device=DEVICE)
+    qpos = np.tile(mjd.qpos, (2, 1))
+    qpos[:, 2] = -0.005
+    m, d = put(mjm, mjd, qpos, np.zeros((2, mjm.nv)))
+    user = np.zeros((2, mjm.nbody, 6), dtype=np.float32)
+    user[1, 1] = [0.01, 0.0, 0.2, 0.0, 0.0, 0.001]  # a push on world 1's sphere
+    d.xfrc_applied.assign(user)
+    with field.installed(m, d):
+        mjw.step(m, d)
+        rft = field.wrenches(d)
+        total = d.xfrc_applied.numpy()
+        np.testing.assert_allclose(total, user + rft.astype(np.float32), rtol=0, atol=1e-7)
+        pushed = total.copy()
+        pushed[0, 1, 0] = 0.5  # the user assigns one component of world 0's row
+        d.xfrc_applied.assign(pushed)
+        mjw.step(m, d)
+        rft = field.wrenches(d)
+        want = user.copy()
+        want[0, 1, 0] = 0.5
+        np.testing.assert_allclose(
+            d.xfrc_applied.numpy(), want + rft.astype(np.float32), rtol=0, atol=1e-7
+        )
+    np.testing.assert_array_equal(d.xfrc_applied.numpy(), want)  # the user's values, restored
+
+
+def mechanical_energy(mjm, qpos, qvel):
+    """Potential + kinetic energy [J] of the free sphere (world frame, z up)."""
+    mass = mjm.body_mass[1]
+    inertia = mjm.body_inertia[1]
+    g = -mjm.opt.gravity[2]
+    return mass * g * qpos[2] + 0.5 * mass * qvel[:3] @ qvel[:3] + 0.5 * inertia @ qvel[3:] ** 2
+
+
+def test_a_resting_body_gains_no_more_energy_than_on_the_cpu_without_the_treatment():
+    """The Warp field has no low-speed treatment: a sphere at rest in the medium chatters as the
+    CPU field's pure model does; it must not gain more energy than that."""
+    mjm, mjd = load("sphere_drop")
+    field = mw.WarpField(mjm, device=DEVICE)
+    nstep = 400
+    qpos = mjd.qpos.copy()
+    qpos[2] = -0.004  # about where it comes to rest
+    m, d = put(mjm, mjd, qpos[None], np.zeros((1, mjm.nv)))
+    e0 = mechanical_energy(mjm, qpos, np.zeros(mjm.nv))
+    gpu_rise = 0.0
+    with field.installed(m, d):
+        for _ in range(nstep):
+            mjw.step(m, d)
+            e = mechanical_energy(mjm, d.qpos.numpy()[0].astype(float), d.qvel.numpy()[0])
+            gpu_rise = max(gpu_rise, e - e0)
+    cpu = GranularField(mjm, low_speed="off")
+    mjd.qpos[:] = qpos
+    mjd.qvel[:] = 0.0
+    cpu_rise = 0.0
+    for _ in range(nstep):
+        mujoco.mj_forward(mjm, mjd)
+        mjd.xfrc_applied[:] = cpu.wrench(mjd)
+        mujoco.mj_step(mjm, mjd)
+        cpu_rise = max(cpu_rise, mechanical_energy(mjm, mjd.qpos, mjd.qvel) - e0)
+    # float32 state: its potential energy resolves m g z to m g * 6e-8 * |z| (~1e-9 J here)
+    print(f"largest energy rise: Warp field {gpu_rise:.3e} J, CPU field {cpu_rise:.3e} J")
+    assert gpu_rise <= cpu_rise + 1e-8, (gpu_rise, cpu_rise)
+
+
+SCENE = """
+<mujoco>
+  <size nuserdata="6000"/>
+  <custom>
+    <text name="mjrft:material" data="glass_beads"/>
+    {extra}
+    <tuple name="mjrft:intruders"><element objtype="geom" objname="ball" prm="200"/></tuple>
+  </custom>
+  <worldbody>
+    <body name="ball" pos="0 0 0.01"><freejoint/><geom name="ball" size="0.01"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [
+        ('<text name="mjrft:model" data="agarwal3d"/>', "agarwal3d"),
+        ('<numeric name="mjrft:surface_slope" data="10 0"/>', "tilted plane"),
+        (
+            '<numeric name="mjrft:region" data="-0.1 -0.1 -0.1 0.1 0.1 0.1"/>'
+            '<numeric name="mjrft:deform_cell" data="0.005"/>',
+            "deforming ground",
+        ),
+    ],
+)
+def test_unsupported_scenes_are_named(extra, named):
+    mjm = mujoco.MjModel.from_xml_string(SCENE.format(extra=extra))
+    with pytest.raises(mw.UnsupportedScene, match=named):
+        mw.WarpField(mjm, device=DEVICE)
+
+
+def test_a_mujoco_warp_release_of_another_mujoco_is_refused(monkeypatch):
+    monkeypatch.setattr(mw, "version", lambda name: "3.16.0")
+    with pytest.raises(ImportError, match=r"mujoco-warp 3\.16\.0 does not match mujoco 3\.17"):
+        mw._check_versions()
+
+
+def test_too_many_worlds_for_the_device_are_refused_before_allocating():
+    with pytest.raises(MemoryError, match="nworld=100000"):
+        mw.field.check_memory(100_000, 2_000, wp.get_device(DEVICE), free=10 * 2**20)
+
+
+def test_the_gpu_benchmark_runs_on_the_cpu_device(tmp_path):
+    import runpy
+
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[1] / "benchmarks" / "gpu.py"))
+    out = tmp_path / "gpu.csv"
+    rows = bench["main"](
+        ["--device", DEVICE, "--nworld", "2", "--models", "sphere_drop", "--steps", "2",
+         "--repeats", "1", "--out", str(out)]
+    )  # fmt: skip
+    assert [r["field"] for r in rows] == ["off", "on"]
+    on = rows[1]
+    assert float(on["steps_per_s"]) > 0.0 and 0.0 < float(on["rft_share"]) < 1.0
+    assert out.read_text().startswith("model,nworld,triangles,field")
