@@ -6,7 +6,9 @@ Layers (each a subpackage; imports go downwards only):
   rigid bodies); imports no mujoco;
 * ``mjrft.field``: the binding to a compiled MjModel (``GranularField``, batches);
 * ``mjrft.app``: simulation runs, the CLI, reports, rerun recordings, demos;
-* ``mjrft.envs``: dm_control environments (and their gymnasium registration).
+* ``mjrft.envs``: dm_control environments (and their gymnasium registration);
+* ``mjrft.warp``: the field on MuJoCo Warp for many worlds (optional extra ``gpu``) and the
+  hexapod task as a vector environment (its constants from ``mjrft.envs.hexapod_sand``).
 
 ``mjrft.GranularField`` is loaded on first use, so ``import mjrft`` does not import mujoco.
 """

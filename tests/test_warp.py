@@ -318,3 +318,42 @@ def test_the_gpu_benchmark_runs_on_the_cpu_device(tmp_path):
     on = rows[1]
     assert float(on["steps_per_s"]) > 0.0 and 0.0 < float(on["rft_share"]) < 1.0
     assert out.read_text().startswith("model,nworld,triangles,field")
+
+
+def test_the_vector_hexapod_observes_and_controls_as_the_dm_control_task():
+    from mjrft.envs import hexapod_sand
+
+    from mjrft.warp.hexapod import OBS_SIZE, OBSERVATIONS, HexapodVecEnv
+
+    env = hexapod_sand.make(seed=3)
+    env.reset()
+    action = np.array([1.5, 2.0])
+    for _ in range(5):  # somewhere into the walk: moving, turned, tripods re-phasing
+        ts = env.step(action)
+    physics = env.physics
+    venv = HexapodVecEnv(2, device=DEVICE)
+    obs = venv.reset(seed=1).numpy()
+    assert obs.shape == (2, OBS_SIZE) and np.all(np.isfinite(obs))
+    assert np.all(np.abs(obs[:, 0] - obs[0, 0]) < 0.01)  # both lowered onto the surface
+    d = venv.d
+    state = {"qpos": physics.data.qpos, "qvel": physics.data.qvel, "act": physics.data.act}
+    for name, value in state.items():
+        getattr(d, name).assign(np.tile(value, (2, 1)).astype(np.float32))
+    mjw.forward(venv.m, d)
+    venv._observe()
+    want = np.concatenate([ts.observation[name] for name, _ in OBSERVATIONS])
+    # float32 state and kinematics on the device
+    np.testing.assert_allclose(venv.obs.numpy()[0], want, rtol=0, atol=2e-5)
+    gait = np.array([[1.5, 2.0], [0.5, 0.3]], dtype=np.float32)
+    wp.launch(
+        mw.hexapod.gait_kernel, dim=(2, 6),
+        inputs=[venv.control_timestep, hexapod_sand.MAX_FREQUENCY, hexapod_sand.MAX_PHASE_RATE,
+                wp.array(gait, dtype=float, device=DEVICE), d.act],
+        outputs=[d.ctrl], device=DEVICE,
+    )  # fmt: skip
+    for w in range(2):
+        env.task.before_step(gait[w].astype(float), physics)
+        np.testing.assert_allclose(d.ctrl.numpy()[w], physics.data.ctrl, rtol=0, atol=1e-4)
+    obs, reward, done = venv.step(np.tile(action, (2, 1)))
+    assert not done and np.all(np.isfinite(obs.numpy()))
+    assert np.all(np.abs(reward.numpy()) < 1.0)  # a walking speed [m/s], not a jump

@@ -46,5 +46,13 @@ def _check_versions() -> None:
 _check_versions()
 
 from mjrft.warp.field import UnsupportedScene, WarpField, element_forces  # noqa: E402
+from mjrft.warp.hexapod import HexapodVecEnv  # noqa: E402
 
-__all__ = ["UnsupportedScene", "WarpField", "element_forces", "mujoco_warp", "warp"]
+__all__ = [
+    "HexapodVecEnv",
+    "UnsupportedScene",
+    "WarpField",
+    "element_forces",
+    "mujoco_warp",
+    "warp",
+]
