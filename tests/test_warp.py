@@ -73,7 +73,13 @@ def test_the_warp_law_equals_element_forces(preset, dynamic):
 
 
 def load(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    mjm = mujoco.MjModel.from_xml_path(str(models_dir() / f"{name}.xml"))
+    """A rig of models/; "hexapod_slope": the hexapod on a plane tilted 12 deg (downhill +x)."""
+    if name == "hexapod_slope":
+        spec = mujoco.MjSpec.from_file(str(models_dir() / "hexapod_sand.xml"))
+        spec.add_numeric(name="mjrft:surface_slope", data=[12.0, 0.0])
+        mjm = spec.compile()
+    else:
+        mjm = mujoco.MjModel.from_xml_path(str(models_dir() / f"{name}.xml"))
     mjd = mujoco.MjData(mjm)
     if mjm.nkey:
         mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
@@ -88,9 +94,13 @@ def initial_states(name, mjm, mjd):
         if name == "sphere_drop":  # lowered, thrown sideways and spinning
             qpos[w, 2] = 0.008 - 0.005 * w
             qvel[w, :6] = [0.1 * w, 0.0, -0.2, 0.0, 3.0, 0.0]
-        elif name == "hexapod_sand":  # the torso lowered so that the legs stand in the medium
+        elif name in ("hexapod_sand", "hexapod_slope"):  # the legs stand in the medium
             qpos[w, 2] = 0.035 - 0.004 * w
             qvel[w, :3] = [0.05 * w, 0.0, -0.1]
+        elif name == "dune_drop":  # the three spheres pushed into the dune, moving
+            for j in range(3):
+                qpos[w, 7 * j + 2] -= 0.004 + 0.003 * w
+                qvel[w, 6 * j : 6 * j + 6] = [0.05 * w, -0.03, -0.1, 2.0, 0.0, 1.0]
         else:  # the ellipsoid rig: every joint moving
             qvel[w] = 0.5 * (w + 1) * np.random.default_rng(w).normal(size=mjm.nv)
     return qpos, qvel
@@ -111,7 +121,9 @@ def world_kinematics(mjd, d, w):
         dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
 
 
-@pytest.mark.parametrize("name", ["sphere_drop", "hexapod_sand", "ellipsoid_pitch"])
+@pytest.mark.parametrize(
+    "name", ["sphere_drop", "hexapod_sand", "ellipsoid_pitch", "hexapod_slope", "dune_drop"]
+)
 def test_wrenches_equal_the_cpu_field_on_the_same_states(name):
     mjm, mjd = load(name)
     field = mw.WarpField(mjm, device=DEVICE, store_element_forces=True)
@@ -280,7 +292,6 @@ SCENE = """
     ("extra", "named"),
     [
         ('<text name="mjrft:model" data="agarwal3d"/>', "agarwal3d"),
-        ('<numeric name="mjrft:surface_slope" data="10 0"/>', "tilted plane"),
         (
             '<numeric name="mjrft:region" data="-0.1 -0.1 -0.1 0.1 0.1 0.1"/>'
             '<numeric name="mjrft:deform_cell" data="0.005"/>',
@@ -292,6 +303,16 @@ def test_unsupported_scenes_are_named(extra, named):
     mjm = mujoco.MjModel.from_xml_string(SCENE.format(extra=extra))
     with pytest.raises(mw.UnsupportedScene, match=named):
         mw.WarpField(mjm, device=DEVICE)
+
+
+@pytest.mark.filterwarnings("ignore::mjrft.core.material.MaterialWarning")  # a stand-in medium
+def test_a_material_of_python_callables_is_named():
+    mjm = mujoco.MjModel.from_xml_string(SCENE.format(extra=""))
+    medium = Material.from_callables(
+        lambda b, g: 0.2 + 0.0 * b, lambda b, g: 0.1 + 0.0 * b, zeta=3e5, name="my_sand"
+    )
+    with pytest.raises(mw.UnsupportedScene, match="callable material.*my_sand"):
+        mw.WarpField(mjm, medium, device=DEVICE)
 
 
 def test_a_mujoco_warp_release_of_another_mujoco_is_refused(monkeypatch):
@@ -320,18 +341,19 @@ def test_the_gpu_benchmark_runs_on_the_cpu_device(tmp_path):
     assert out.read_text().startswith("model,nworld,triangles,field")
 
 
-def test_the_vector_hexapod_observes_and_controls_as_the_dm_control_task():
+@pytest.mark.parametrize("slope", [None, (10.0, 30.0)])
+def test_the_vector_hexapod_observes_and_controls_as_the_dm_control_task(slope):
     from mjrft.envs import hexapod_sand
 
     from mjrft.warp.hexapod import OBS_SIZE, OBSERVATIONS, HexapodVecEnv
 
-    env = hexapod_sand.make(seed=3)
+    env = hexapod_sand.make(seed=3, slope=slope)
     env.reset()
     action = np.array([1.5, 2.0])
     for _ in range(5):  # somewhere into the walk: moving, turned, tripods re-phasing
         ts = env.step(action)
     physics = env.physics
-    venv = HexapodVecEnv(2, device=DEVICE)
+    venv = HexapodVecEnv(2, device=DEVICE, slope=slope)
     obs = venv.reset(seed=1).numpy()
     assert obs.shape == (2, OBS_SIZE) and np.all(np.isfinite(obs))
     assert np.all(np.abs(obs[:, 0] - obs[0, 0]) < 0.01)  # both lowered onto the surface

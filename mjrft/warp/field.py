@@ -22,12 +22,14 @@ import mujoco
 import numpy as np
 import warp as wp
 
-from mjrft.core import surface
+from mjrft.core import surface as core_surface
 from mjrft.core.material import Material
 from mjrft.field.granular_field import GranularField
 from mjrft.field.scene import SceneError
+from mjrft.warp import surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
 from mjrft.warp.quadrature import quadrature_point
+from mjrft.warp.surface import Surface
 
 
 class UnsupportedScene(SceneError):
@@ -38,14 +40,14 @@ class UnsupportedScene(SceneError):
 @wp.struct
 class Medium:
     """The medium and its extent: combined coefficients co (18,), alpha_y, zeta [N/m^3], the
-    dynamic term's lambda rho_c [kg/m^3] (0: off), the flat surface's height [m] and the region
-    box [m] (used if use_region); world frame."""
+    dynamic term's lambda rho_c [kg/m^3] (0: off), the free surface and the region box [m]
+    (used if use_region); world frame."""
 
     co: wp.array(dtype=f64)
     ay: f64
     zeta: f64
     lam_rho: f64
-    surface_z: f64
+    surface: Surface
     use_region: int
     region_lo: vec3d
     region_hi: vec3d
@@ -61,14 +63,14 @@ def cull_kernel(
     cull: wp.array2d(dtype=int),
 ):  # fmt: skip
     """cull[w, g] = 1 if tagged geom g of world w cannot touch the medium (mjrft.field.evaluate
-    ``culled``: bounding sphere above the flat surface or outside the region; radius 0 never)."""
+    ``culled``: bounding sphere above the surface or outside the region; radius 0 never)."""
     w, g = wp.tid()
     r = tgeom_rbound[g]
     out = int(0)
     if r > f64(0.0):
         p = geom_xpos[w, tgeom_geomid[g]]
         c = vec3d(f64(p[0]), f64(p[1]), f64(p[2]))
-        if c[2] - r >= medium.surface_z:
+        if c[2] - r >= surface.highest_near(medium.surface, c[0], c[1], r):
             out = 1
         if medium.use_region != 0:
             for i in range(3):
@@ -120,7 +122,7 @@ def element_kernel(
         q = quadrature_point(
             elem_pos[i], elem_normal[i], elem_area[i], elem_reach[i], elem_patch, i, rot,
             widen(xpos[w, b]), omega, v_ref, widen(subtree_com[w, tbody_rootid[k]]),
-            medium.surface_z, medium.use_region, medium.region_lo, medium.region_hi,
+            medium.surface, medium.use_region, medium.region_lo, medium.region_hi,
         )  # fmt: skip
         if q.w > f64(0.0):
             f = element_force(q.n, q.v, q.w, q.a, medium.co, medium.ay, medium.zeta, medium.lam_rho)
@@ -190,14 +192,11 @@ def _supported(gf: GranularField) -> None:
             f"mjrft.warp: {what} ({m.name!r}) is not supported yet; the Warp field evaluates "
             "Fourier-form media under the treers2021 model (a preset or mjrft:coefficients)"
         )
-    kind = int(gf.scene.surface.prm[surface.KIND])
-    if kind != surface.FLAT:
-        what = {surface.PLANE: "a tilted plane (mjrft:slope)", surface.GRID: "a height field "
-                "surface (mjrft:hfield)", surface.SOIL: "the deforming ground "
-                "(mjrft:deform_cell)"}[kind]  # fmt: skip
+    if gf.scene.surface.kind == core_surface.SOIL:
         raise UnsupportedScene(
-            f"mjrft.warp: {what} is not supported yet; the Warp field has the flat surface "
-            "only (mjrft:surface_z)"
+            "mjrft.warp: the deforming ground (mjrft:deform_cell) is not supported yet; the Warp "
+            "field has fixed surfaces: flat, tilted (mjrft:surface_slope) or a height field "
+            "(mjrft:surface_hfield)"
         )
 
 
@@ -226,7 +225,7 @@ class WarpField:
         costs nworld x elements x 24 bytes of device memory.
     Raises:
       UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
-      model, callable materials, uneven or deforming ground. SceneError as GranularField.
+      model, callable materials, the deforming ground. SceneError as GranularField.
 
     The Warp field has no low-speed treatment (the CPU field's "stick" and mechanism
     treatments): it is the pure model, as ``GranularField(low_speed="off")``, and it evaluates
@@ -283,11 +282,16 @@ class WarpField:
         self._medium.ay = f64(fm.alpha_y)
         self._medium.zeta = f64(fm.zeta)
         self._medium.lam_rho = f64(mat.dynamic)
-        self._medium.surface_z = f64(fm.surface_z)
+        self._medium.surface = surface.from_core(gf.scene.surface, dev)
         self._medium.use_region = int(fm.use_region)
         self._medium.region_lo = vec3d(*region[0])
         self._medium.region_hi = vec3d(*region[1])
         self._worlds: dict[int, _Worlds] = {}
+
+    @property
+    def surface(self) -> Surface:
+        """The free surface on the device (``mjrft.warp.surface``)."""
+        return self._medium.surface
 
     # ------------------------------------------------------------------ per-Data state
     def bytes_per_world(self) -> int:

@@ -19,7 +19,9 @@ import warp as wp
 
 from mjrft.envs.hexapod_sand import HIP_QPOS, HIP_QVEL, MAX_FREQUENCY, MAX_PHASE_RATE, TRIPOD_B
 from mjrft.field.scene import load_model
+from mjrft.warp import surface
 from mjrft.warp.field import WarpField
+from mjrft.warp.surface import Surface
 
 #: Observation columns, in order: (name, size), as ``hexapod_sand``'s ordered dict.
 OBSERVATIONS = (
@@ -57,7 +59,7 @@ def gait_kernel(
 
 @wp.kernel
 def observe_kernel(
-    control_dt: float, surface_z: float,
+    control_dt: float, sf: Surface,
     qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float),
     xmat: wp.array2d(dtype=wp.mat33),
     x_prev: wp.array(dtype=float), obs: wp.array2d(dtype=float), reward: wp.array(dtype=float),
@@ -65,7 +67,8 @@ def observe_kernel(
     """Observations (OBSERVATIONS) and reward (world-x speed over the control step) per world."""
     w = wp.tid()
     r = xmat[w, 1]  # torso, world <- torso
-    obs[w, 0] = qpos[w, 2] - surface_z
+    ground = surface.height(sf, wp.float64(qpos[w, 0]), wp.float64(qpos[w, 1]))
+    obs[w, 0] = qpos[w, 2] - float(ground)  # above the surface under the torso, vertically
     for i in range(3):
         obs[w, 1 + i] = r[2, i]
     h = wp.max(1e-12, wp.sqrt(r[0, 0] * r[0, 0] + r[1, 0] * r[1, 0]))
@@ -92,7 +95,8 @@ class HexapodVecEnv:
       nworld: number of worlds. device: Warp device (default Warp's).
       control_timestep [s]: a multiple of the model's 1 ms timestep. time_limit [s].
       seed: the random gait phases of the first ``reset``.
-      material, n_triangles: as ``mjrft.envs.hexapod_sand.make`` (flat ground only).
+      material, n_triangles, slope: as ``mjrft.envs.hexapod_sand.make`` (slope: (slope,
+        downhill azimuth) [deg], a tilted plane; no deforming ground).
     Action: (nworld, 2) gait frequency [Hz] in [0, 4] and tripod B's phase offset [rad].
     Observation: (nworld, OBS_SIZE) float32, the columns of OBSERVATIONS (frames and units as
     ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. The field has no low-speed
@@ -102,10 +106,14 @@ class HexapodVecEnv:
 
     def __init__(self, nworld: int, *, device: str | None = None, control_timestep: float = 0.02,
                  time_limit: float = 20.0, seed: int = 0, material=None,
-                 n_triangles: int | None = None) -> None:  # fmt: skip
+                 n_triangles: int | None = None,
+                 slope: tuple[float, float] | None = None) -> None:  # fmt: skip
         from mjrft.app.simulate import models_dir
 
-        self.mjm = load_model(str(models_dir() / "hexapod_sand.xml"))
+        spec = mujoco.MjSpec.from_file(str(models_dir() / "hexapod_sand.xml"))
+        if slope is not None:
+            spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
+        self.mjm = load_model(spec)
         dt = float(self.mjm.opt.timestep)
         self.substeps = round(control_timestep / dt)
         if self.substeps < 1 or abs(self.substeps * dt - control_timestep) > 1e-9:
@@ -137,16 +145,17 @@ class HexapodVecEnv:
         m, d = self.mjm, self._mjd
         qpos = np.empty((self.nworld, m.nq))
         act = np.empty((self.nworld, m.na))
-        surface_z = self.field.cpu.surface_z
+        ground = self.field.cpu.surface.height
         for w in range(self.nworld):
             mujoco.mj_resetDataKeyframe(m, d, 0)
             d.qpos[HIP_QPOS] += self._rng.uniform(0.0, _TWO_PI)
             mujoco.mj_kinematics(m, d)
-            low = min(
-                float((d.xpos[be.body, 2] + be.centroids @ d.xmat[be.body].reshape(3, 3)[2]).min())
-                for be in self.field.cpu.bodies
-            )  # fmt: skip
-            d.qpos[2] -= low - surface_z
+            low = np.inf
+            for be in self.field.cpu.bodies:
+                rot = d.xmat[be.body].reshape(3, 3)
+                x, y, z = (d.xpos[be.body, i] + be.centroids @ rot[i] for i in range(3))
+                low = min(low, float((z - ground(x, y)).min()))
+            d.qpos[2] -= low
             qpos[w] = d.qpos
             act[w] = d.qpos[HIP_QPOS]  # servo references = current angles: at rest
         return qpos, act
@@ -171,17 +180,15 @@ class HexapodVecEnv:
     def _observe(self) -> None:
         wp.launch(
             observe_kernel, dim=self.nworld,
-            inputs=[self.control_timestep, float(self.field.cpu.surface_z), self.d.qpos,
-                    self.d.qvel, self.d.xmat],
+            inputs=[self.control_timestep, self.field.surface, self.d.qpos, self.d.qvel,
+                    self.d.xmat],
             outputs=[self._x_prev, self.obs, self.reward], device=self.device,
         )  # fmt: skip
 
-    def step(self, action) -> tuple[wp.array, wp.array, bool]:
-        """One control step of every world: (observations, rewards, episode over)."""
-        if not isinstance(action, wp.array):
-            action = wp.array(np.asarray(action, dtype=np.float32), dtype=float, device=self.device)
-        if action.shape != (self.nworld, 2):
-            raise ValueError(f"action: expected shape ({self.nworld}, 2), got {action.shape}")
+    def advance(self, action: wp.array) -> None:
+        """One control step of every world, kernels only (capturable in a CUDA graph): the gait
+        controller from action (nworld, 2), the physics substeps with the field, then
+        ``obs`` and ``reward`` are updated in place."""
         wp.launch(
             gait_kernel, dim=(self.nworld, 6),
             inputs=[self.control_timestep, MAX_FREQUENCY, MAX_PHASE_RATE, action, self.d.act],
@@ -190,6 +197,15 @@ class HexapodVecEnv:
         for _ in range(self.substeps):
             mjw.step(self.m, self.d)
         self._observe()
+
+    def step(self, action) -> tuple[wp.array, wp.array, bool]:
+        """One control step of every world: (observations, rewards, episode over); action
+        (nworld, 2), a Warp array on the device or anything NumPy reads."""
+        if not isinstance(action, wp.array):
+            action = wp.array(np.asarray(action, dtype=np.float32), dtype=float, device=self.device)
+        if action.shape != (self.nworld, 2):
+            raise ValueError(f"action: expected shape ({self.nworld}, 2), got {action.shape}")
+        self.advance(action)
         self._steps += 1
         done = self._steps * self.control_timestep >= self.time_limit - 1e-9
         return self.obs, self.reward, done

@@ -5,7 +5,7 @@ at its centroid unless its bounds say the free surface or the leading boundary n
 cross it; then its corners decide, and a crossed element (or one within the band of the
 surface) is integrated over its submerged leading part, blended into the one-point rule.
 On a GPU each element is one thread, so the CPU kernel's chunked hold-and-triage passes
-become branches of one function. Flat surface only (depth = surface_z - z).
+become branches of one function. Flat, tilted or height-grid surfaces (mjrft.warp.surface).
 """
 
 from __future__ import annotations
@@ -13,7 +13,9 @@ from __future__ import annotations
 import warp as wp
 
 from mjrft.core import quadrature as q
+from mjrft.warp import surface
 from mjrft.warp.law import f64, vec3d
+from mjrft.warp.surface import Surface
 
 _Z = wp.constant(f64(0.0))
 _ONE = wp.constant(f64(1.0))
@@ -189,16 +191,21 @@ def _blend(
 @wp.func
 def quadrature_point(
     cent: vec3d, n_body: vec3d, area: f64, reach: f64, patch: wp.array2d(dtype=f64), i: int,
-    rot: wp.mat33d, origin: vec3d, omega: vec3d, v_ref: vec3d, p_ref: vec3d, surface_z: f64,
+    rot: wp.mat33d, origin: vec3d, omega: vec3d, v_ref: vec3d, p_ref: vec3d, sf: Surface,
     use_region: int, region_lo: vec3d, region_hi: vec3d,
 ) -> Point:  # fmt: skip
     """Where element i (body frame: centroid cent, unit normal n_body, area, reach, patch row)
-    of a body at rot, origin moving with omega at v_ref at p_ref (world) is evaluated."""
+    of a body at rot, origin moving with omega at v_ref at p_ref (world) is evaluated under
+    the surface sf (depth measured vertically)."""
     out = Point()
     p = rot * cent + origin
-    depth = surface_z - p[2]
+    depth = surface.ceiling(sf) - p[2]  # an element above the ceiling is dry wherever it is
     if depth <= -_BAND * reach:
         return out
+    if sf.kind != surface.FLAT:
+        depth = surface.depth(sf, p)
+        if depth <= -_BAND * reach:
+            return out
     if use_region != 0:
         for j in range(3):
             if p[j] < region_lo[j] or p[j] > region_hi[j]:
@@ -221,7 +228,10 @@ def quadrature_point(
             o = _row3(patch, i, 3 * k)
             corner = cent + o
             s[k] = wp.dot(_row3(patch, i, _NORMAL + 3 * k), lin_b + wp.cross(ang_b, corner))
-            d[k] = surface_z - (p[2] + (rot * o)[2])
+            if sf.kind == surface.FLAT:
+                d[k] = sf.z0 - (p[2] + (rot * o)[2])
+            else:
+                d[k] = surface.depth(sf, p + rot * o)
         if (s[0] < _Z and s[1] < _Z and s[2] < _Z) or (d[0] <= _Z and d[1] <= _Z and d[2] <= _Z):
             return out
         whole = s[0] > _Z and s[1] > _Z and s[2] > _Z and d[0] > _Z and d[1] > _Z and d[2] > _Z
