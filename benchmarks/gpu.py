@@ -3,7 +3,10 @@
 Run: python benchmarks/gpu.py [--device cuda:0] [--nworld 1 16 ...] [--steps N]
 For each model (the hexapod standing in the medium, the ellipsoid rig driven into it) and each
 nworld: steps per second summed over worlds with the field off and on, and the per-step split
-(MuJoCo Warp's step with the field off vs the field's own pass, `WarpField.compute` + `apply`).
+(MuJoCo Warp's step with the field off vs the field's own pass, `WarpField.compute` + `apply`);
+for the hexapod also the vector environment (`HexapodVecEnv.advance`: gait controller, 20
+physics steps with the field, observations and reward on the device), as physics steps per
+second.
 On a CUDA device each timed loop is one captured CUDA graph of N steps, replayed (the first
 replay is discarded); on the CPU device the steps are launched one by one. Every figure is the
 median of --repeats timings. Writes benchmarks/results/gpu.csv.
@@ -31,7 +34,7 @@ import mujoco_warp as mjw  # noqa: E402
 wp.config.quiet = True  # (importing MuJoCo Warp turns Warp's per-module messages back on)
 
 from mjrft.app import metadata  # noqa: E402
-from mjrft.warp import WarpField  # noqa: E402
+from mjrft.warp import HexapodVecEnv, WarpField  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -52,6 +55,8 @@ def initial_state(name: str, mjm: mujoco.MjModel, mjd: mujoco.MjData, nworld: in
 
 def timed(device, fn, steps: int, repeats: int) -> float:
     """Median seconds for `steps` calls of fn (one CUDA graph of them on a GPU)."""
+    fn()  # loads every kernel module outside a capture
+    wp.synchronize_device(device)
     if device.is_cuda:
         with wp.ScopedCapture(device=device) as capture:
             for _ in range(steps):
@@ -60,7 +65,6 @@ def timed(device, fn, steps: int, repeats: int) -> float:
         wp.capture_launch(graph)  # first replay: not timed
         run = lambda: wp.capture_launch(graph)  # noqa: E731
     else:
-        fn()
         run = lambda: [fn() for _ in range(steps)]  # noqa: E731
     wp.synchronize_device(device)
     times = []
@@ -92,12 +96,21 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
         on = timed(device, lambda: mjw.step(m, d), steps, repeats)
         field.uninstall(m)
     rows = []
-    for label, t in (("off", off), ("on", on)):
+    timings = [("off", off), ("on", on)]
+    if name == "hexapod_sand":  # the vector environment: control steps of 20 physics steps
+        env = HexapodVecEnv(nworld, device=str(device))
+        env.reset(seed=0)
+        action = wp.array(np.tile([1.0, np.pi], (nworld, 1)).astype(np.float32), dtype=float,
+                          device=device)  # fmt: skip
+        control = max(1, steps // env.substeps)
+        t = timed(device, lambda: env.advance(action), control, repeats)
+        timings.append(("env", t * steps / (control * env.substeps)))
+    for label, t in timings:
         rows.append(
             {
                 "model": name, "nworld": nworld, "triangles": field.nelem, "field": label,
                 "steps_per_s": f"{nworld * steps / t:.4g}", "step_us": f"{t / steps * 1e6:.1f}",
-                "rft_us": f"{rft / steps * 1e6:.1f}" if label == "on" else "",
+                "rft_us": f"{rft / steps * 1e6:.1f}" if label != "off" else "",
                 "rft_share": f"{rft / on:.3f}" if label == "on" else "",
             }
         )  # fmt: skip

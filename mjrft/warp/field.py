@@ -253,7 +253,7 @@ class WarpField:
         self.cpu = gf
         self.device = wp.get_device(device)
         self.store_element_forces = bool(store_element_forces)
-        fm = gf._tables.arrays
+        fm = gf._tables.arrays  # the CPU field's static tables: one source for both
         self.body_ids = np.asarray(fm.tbody_bodyid, dtype=np.int64)
         self.nelem = int(fm.elem_area.shape[0])
         self.ntgeom = int(fm.tgeom_geomid.shape[0])
@@ -319,6 +319,8 @@ class WarpField:
             elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
             owner=weakref.ref(d),
         )
+        # Forget the arrays of Data that no longer exist (their ids may be reused).
+        self._worlds = {k: v for k, v in self._worlds.items() if v.owner() is not None}
         self._worlds[id(d)] = st
         return st
 
