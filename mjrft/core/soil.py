@@ -23,9 +23,10 @@ new configuration:
    lands as loose material (h grows, c and p unchanged).
 4. *Relaxation*: wherever two neighbouring vertices (along x, y and both diagonals) differ by
    more than tan(repose) times their distance, material moves from the higher to the lower one
-   (half the excess, so the pair ends exactly at the repose slope), sweep after sweep over the
-   box of recent activity, never into or out of a column an intruder presses on or the grid's
-   edge ring, and into the gap under a hovering intruder only up to its floor.
+   (half the excess, so the pair ends exactly at the repose slope): one sweep over the box of
+   recent activity, then vertex by vertex wherever material moved, never into or out of a
+   column an intruder presses on or the grid's edge ring, and into the gap under a hovering
+   intruder only up to its floor.
 
 Every move subtracts from one vertex exactly what it adds to another, and the edge ring never
 changes, so the volume under the surface (dx dy times the sum of h over the vertices) is
@@ -60,7 +61,8 @@ _JIT = {"cache": True, "error_model": "numpy"}
 #: Barycentric slack of the rasterisation: a vertex on an edge shared by two triangles is
 #: covered by both, whatever the rounding.
 EDGE_SLACK = 1e-12
-#: Relaxation sweeps per update at most; what is left continues at the next update (counted in
+#: Relaxation work per update at most, in sweeps of the update's box (``relax``: the pair
+#: visits of this many sweeps); what is left continues at the next update (counted in
 #: "unrelaxed"). A pile's excess travels down its slope diffusively, so a growing berm would
 #: take ~its width squared in sweeps to settle exactly at every step; the budget bounds a step's
 #: cost and lets the slope settle over the next steps.
@@ -283,64 +285,133 @@ def _settle_pair(soil, oh, oc, i, hi, fi, j, hj, fj, lim):
     return 0.0
 
 
-@numba.njit(**_JIT)
-def relax(prm, grid, soil, floor, box, seen, stats):
-    """Relax the surface inside box (4,) until no pair of free neighbouring vertices is steeper
-    than the angle of repose, or MAX_SWEEPS; returns True if it converged.
+#: The eight neighbours of a vertex: (row step, column step, index of the limit: x, y, diagonal).
+_NEIGHBOURS = ((0, 1, 0), (0, -1, 0), (1, 0, 1), (-1, 0, 1), (1, 1, 2), (-1, -1, 2), (1, -1, 2),
+               (-1, 1, 2))  # fmt: skip
+#: soil_owner's value for a vertex waiting in the relaxation's queue (deposition is done by
+#: then, and ``finish`` clears the owners).
+QUEUED = -2
 
-    Sweeps alternate direction (symmetric Gauss-Seidel), so an excess travels down a slope in
-    either direction within one sweep. Each sweep after the first covers only the vertices that
-    moved in the one before and their neighbours: a pair of which neither vertex moved was in
-    repose when visited and still is, so the moves are those of sweeping the whole box, at the
-    cost of the slopes still settling (measured on the wheel rig: 107 against 1250 us per
-    step). On return box holds the next sweep's box (the slopes left unrelaxed) and seen (4,)
-    has grown over every box swept.
-    A vertex an intruder presses on neither gives nor takes (``_settle_pair`` for the gap under
-    a hovering one)."""
+
+@numba.njit(inline="always", **_JIT)
+def _push(queue, tail, count, mark, i, r, c, moved):
+    """Append vertex i (row r, column c) to the ring buffer queue unless it waits there already;
+    moved (4,) grows over it. Returns (queue, tail, count); the queue doubles when full."""
+    if mark[r, c] == QUEUED:
+        return queue, tail, count
+    cap = queue.shape[0]
+    if count == cap:  # unroll the ring into a buffer twice as large
+        head = (tail - count) % cap
+        grown = np.empty(2 * cap, np.int64)
+        for q in range(count):
+            grown[q] = queue[(head + q) % cap]
+        queue, tail, cap = grown, count, 2 * cap
+    queue[tail] = i
+    tail = (tail + 1) % cap
+    mark[r, c] = QUEUED
+    union(moved, r, r, c, c)
+    return queue, tail, count + 1
+
+
+@numba.njit(inline="always", **_JIT)
+def _free(grid, soil, oh, floor, r, c, ncol):
+    """(height h [m], intruder floor f [m], True) of vertex (r, c), or (.., False) if an
+    intruder presses on it (it neither gives nor takes)."""
+    h = grid[r, c] + soil[oh + r * ncol + c]
+    f = floor[r, c]
+    return h, f, f >= h + SOIL_CONTACT
+
+
+@numba.njit(**_JIT)
+def relax(prm, grid, soil, floor, mark, box, seen, stats):
+    """Relax the surface from the vertices of box (4,) until no pair of free neighbouring
+    vertices is steeper than the angle of repose, or the work budget is spent; returns True if
+    it converged.
+
+    One sweep over the box, then a queue (first in, first out) of the vertices that moved: a
+    vertex taken from it is settled against its eight neighbours, and every vertex that moved
+    (it, and each neighbour it gave to or took from) joins the queue again, so the work follows
+    the material, wherever the box's corners are (three legs far apart cost three footprints,
+    not the box spanning them). A pair of which neither vertex moved since it was in repose is
+    still in repose. The budget is the pair visits of MAX_SWEEPS sweeps of the box. On return
+    box holds the queue's bounding box if it did not empty (the slopes left unrelaxed), and
+    seen (4,) has grown over every vertex visited. mark (nrow, ncol): soil_owner, which marks
+    the waiting vertices QUEUED (and is cleared by ``finish``). A vertex an intruder presses on
+    neither gives nor takes (``_settle_pair`` for the gap under a hovering one)."""
     ncol, nrow = int(prm[NCOL]), int(prm[NROW])
     oh, oc, _ = _offsets(prm)
     t = prm[TAN_REPOSE]
     lim = (t * prm[DX], t * prm[DY], t * math.hypot(prm[DX], prm[DY]))
     r0, r1 = max(1, int(box[0])), min(nrow - 2, int(box[1]))
     c0, c1 = max(1, int(box[2])), min(ncol - 2, int(box[3]))
-    for sweep in range(MAX_SWEEPS):
-        if r0 > r1 or c0 > c1:
-            return True
-        union(seen, r0, r1, c0, c1)
-        mr0, mr1, mc0, mc1 = nrow, -1, ncol, -1  # the vertices this sweep moved
-        back = sweep % 2 == 1
-        for rs in range(r0, r1 + 1):
-            r = r0 + r1 - rs if back else rs
-            for cs in range(c0, c1 + 1):
-                c = c0 + c1 - cs if back else cs
-                i = r * ncol + c
+    if r0 > r1 or c0 > c1:
+        return True
+    union(seen, r0, r1, c0, c1)
+    budget = MAX_SWEEPS * 4 * (r1 - r0 + 1) * (c1 - c0 + 1)
+    queue = np.empty(256, np.int64)
+    tail, count = 0, 0
+    moved = np.array([nrow, -1.0, ncol, -1.0])
+    for r in range(r0, r1 + 1):  # the sweep: each pair once (right, up, up-right, up-left)
+        for c in range(c0, c1 + 1):
+            hi, fi, free_i = _free(grid, soil, oh, floor, r, c, ncol)
+            if not free_i:
+                continue
+            i = r * ncol + c
+            for a, b, d in ((0, 1, 0), (1, 0, 1), (1, 1, 2), (1, -1, 2)):
+                queue, tail, count = _settle_into(
+                    prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r,
+                    c, hi, fi, a, b, d,
+                )  # fmt: skip
                 hi = grid[r, c] + soil[oh + i]
-                fi = floor[r, c]
-                if fi < hi + SOIL_CONTACT:
-                    continue
-                # Each pair once: right, up, up-right, up-left (the others reach this vertex).
-                for a, b, d in ((0, 1, 0), (1, 0, 1), (1, 1, 2), (1, -1, 2)):
-                    rr, cc = r + a, c + b
-                    if rr < 1 or rr > nrow - 2 or cc < 1 or cc > ncol - 2:
-                        continue
-                    j = rr * ncol + cc
-                    hj = grid[rr, cc] + soil[oh + j]
-                    fj = floor[rr, cc]
-                    if fj < hj + SOIL_CONTACT:
-                        continue
-                    q = _settle_pair(soil, oh, oc, i, hi, fi, j, hj, fj, lim[d])
-                    if q <= 0.0:  # in repose, or capped by an intruder: settled
-                        continue
-                    hi = grid[r, c] + soil[oh + i]
-                    mr0, mr1 = min(mr0, r), max(mr1, rr)
-                    mc0, mc1 = min(mc0, c, cc), max(mc1, c, cc)
-        if mr1 < 0:
-            return True
-        r0, r1 = max(1, mr0 - 1), min(nrow - 2, mr1 + 1)
-        c0, c1 = max(1, mc0 - 1), min(ncol - 2, mc1 + 1)
-        box[0], box[1], box[2], box[3] = r0, r1, c0, c1
+    visits = 4 * (r1 - r0 + 1) * (c1 - c0 + 1)
+    while count > 0 and visits < budget:
+        cap = queue.shape[0]
+        i = queue[(tail - count) % cap]
+        count -= 1
+        r, c = i // ncol, i % ncol
+        mark[r, c] = -1
+        hi, fi, free_i = _free(grid, soil, oh, floor, r, c, ncol)
+        if not free_i:
+            continue
+        for a, b, d in _NEIGHBOURS:
+            queue, tail, count = _settle_into(
+                prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r, c,
+                hi, fi, a, b, d,
+            )  # fmt: skip
+            hi = grid[r, c] + soil[oh + i]
+        visits += 8
+    union(seen, moved[0], moved[1], moved[2], moved[3])
+    if count == 0:
+        return True
+    cap = queue.shape[0]
+    lo_r, hi_r, lo_c, hi_c = nrow, -1, ncol, -1
+    for q in range(count):  # what is left waits for the next update (its box)
+        i = queue[(tail - count + q) % cap]
+        r, c = i // ncol, i % ncol
+        mark[r, c] = -1
+        lo_r, hi_r, lo_c, hi_c = min(lo_r, r), max(hi_r, r), min(lo_c, c), max(hi_c, c)
+    box[0], box[1], box[2], box[3] = lo_r, hi_r, lo_c, hi_c
     stats[3] += 1
     return False
+
+
+@numba.njit(inline="always", **_JIT)
+def _settle_into(prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r, c,
+                 hi, fi, a, b, d):  # fmt: skip
+    """Settle free vertex i (row r, column c, height hi, floor fi) with its neighbour at
+    (r + a, c + b) (limit lim[d]); if material moved, queue both. Returns (queue, tail, count)."""
+    ncol, nrow = int(prm[NCOL]), int(prm[NROW])
+    rr, cc = r + a, c + b
+    if rr < 1 or rr > nrow - 2 or cc < 1 or cc > ncol - 2:
+        return queue, tail, count
+    hj, fj, free_j = _free(grid, soil, oh, floor, rr, cc, ncol)
+    if not free_j:
+        return queue, tail, count
+    j = rr * ncol + cc
+    if _settle_pair(soil, oh, oc, i, hi, fi, j, hj, fj, lim[d]) <= 0.0:
+        return queue, tail, count  # in repose, or capped by an intruder: settled
+    queue, tail, count = _push(queue, tail, count, mark, j, rr, cc, moved)
+    return _push(queue, tail, count, mark, i, r, c, moved)
 
 
 @numba.njit(**_JIT)

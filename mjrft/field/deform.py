@@ -107,7 +107,7 @@ def update(m_rec, e_rec):
         return bad
     box[0], box[1], box[2], box[3] = box[0] - 1, box[1] + 1, box[2] - 1, box[3] + 1
     seen = box.copy()
-    converged = soil.relax(prm, grid, block, s.soil_floor, box, seen, s.soil_stats)
+    converged = soil.relax(prm, grid, block, s.soil_floor, s.soil_owner, box, seen, s.soil_stats)
     _head_store(block, surface.SOIL_PENDING, box, not converged)
     soil.finish(prm, grid, block, s.soil_floor, s.soil_owner, seen, d.time[0])
     return bad
