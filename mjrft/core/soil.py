@@ -294,23 +294,17 @@ QUEUED = -2
 
 
 @numba.njit(inline="always", **_JIT)
-def _push(queue, tail, count, mark, i, r, c, moved):
-    """Append vertex i (row r, column c) to the ring buffer queue unless it waits there already;
-    moved (4,) grows over it. Returns (queue, tail, count); the queue doubles when full."""
+def _push(queue, tail, count, mark, i, r, c, seen):
+    """Append vertex i (row r, column c) to the ring buffer queue (nrow * ncol,) unless it
+    waits there already (mark), so the queue never fills; seen (4,) grows over it. Returns
+    (tail, count)."""
     if mark[r, c] == QUEUED:
-        return queue, tail, count
-    cap = queue.shape[0]
-    if count == cap:  # unroll the ring into a buffer twice as large
-        head = (tail - count) % cap
-        grown = np.empty(2 * cap, np.int64)
-        for q in range(count):
-            grown[q] = queue[(head + q) % cap]
-        queue, tail, cap = grown, count, 2 * cap
+        return tail, count
     queue[tail] = i
-    tail = (tail + 1) % cap
+    tail = (tail + 1) % queue.shape[0]
     mark[r, c] = QUEUED
-    union(moved, r, r, c, c)
-    return queue, tail, count + 1
+    union(seen, r, r, c, c)
+    return tail, count + 1
 
 
 @numba.njit(inline="always", **_JIT)
@@ -323,7 +317,7 @@ def _free(grid, soil, oh, floor, r, c, ncol):
 
 
 @numba.njit(**_JIT)
-def relax(prm, grid, soil, floor, mark, box, seen, stats):
+def relax(prm, grid, soil, floor, mark, queue, box, seen, stats):
     """Relax the surface from the vertices of box (4,) until no pair of free neighbouring
     vertices is steeper than the angle of repose, or the work budget is spent; returns True if
     it converged.
@@ -336,7 +330,8 @@ def relax(prm, grid, soil, floor, mark, box, seen, stats):
     still in repose. The budget is the pair visits of MAX_SWEEPS sweeps of the box. On return
     box holds the queue's bounding box if it did not empty (the slopes left unrelaxed), and
     seen (4,) has grown over every vertex visited. mark (nrow, ncol): soil_owner, which marks
-    the waiting vertices QUEUED (and is cleared by ``finish``). A vertex an intruder presses on
+    the waiting vertices QUEUED (and is cleared by ``finish``); queue (nrow * ncol,) int64:
+    work space for the queue. A vertex an intruder presses on
     neither gives nor takes (``_settle_pair`` for the gap under a hovering one)."""
     ncol, nrow = int(prm[NCOL]), int(prm[NROW])
     oh, oc, _ = _offsets(prm)
@@ -348,9 +343,7 @@ def relax(prm, grid, soil, floor, mark, box, seen, stats):
         return True
     union(seen, r0, r1, c0, c1)
     budget = MAX_SWEEPS * 4 * (r1 - r0 + 1) * (c1 - c0 + 1)
-    queue = np.empty(256, np.int64)
     tail, count = 0, 0
-    moved = np.array([nrow, -1.0, ncol, -1.0])
     for r in range(r0, r1 + 1):  # the sweep: each pair once (right, up, up-right, up-left)
         for c in range(c0, c1 + 1):
             hi, fi, free_i = _free(grid, soil, oh, floor, r, c, ncol)
@@ -358,8 +351,8 @@ def relax(prm, grid, soil, floor, mark, box, seen, stats):
                 continue
             i = r * ncol + c
             for a, b, d in ((0, 1, 0), (1, 0, 1), (1, 1, 2), (1, -1, 2)):
-                queue, tail, count = _settle_into(
-                    prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r,
+                tail, count = _settle_into(
+                    prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, seen, i, r,
                     c, hi, fi, a, b, d,
                 )  # fmt: skip
                 hi = grid[r, c] + soil[oh + i]
@@ -374,13 +367,12 @@ def relax(prm, grid, soil, floor, mark, box, seen, stats):
         if not free_i:
             continue
         for a, b, d in _NEIGHBOURS:
-            queue, tail, count = _settle_into(
-                prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r, c,
+            tail, count = _settle_into(
+                prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, seen, i, r, c,
                 hi, fi, a, b, d,
             )  # fmt: skip
             hi = grid[r, c] + soil[oh + i]
         visits += 8
-    union(seen, moved[0], moved[1], moved[2], moved[3])
     if count == 0:
         return True
     cap = queue.shape[0]
@@ -396,22 +388,22 @@ def relax(prm, grid, soil, floor, mark, box, seen, stats):
 
 
 @numba.njit(inline="always", **_JIT)
-def _settle_into(prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, moved, i, r, c,
+def _settle_into(prm, grid, soil, oh, oc, floor, mark, lim, queue, tail, count, seen, i, r, c,
                  hi, fi, a, b, d):  # fmt: skip
     """Settle free vertex i (row r, column c, height hi, floor fi) with its neighbour at
-    (r + a, c + b) (limit lim[d]); if material moved, queue both. Returns (queue, tail, count)."""
+    (r + a, c + b) (limit lim[d]); if material moved, queue both. Returns (tail, count)."""
     ncol, nrow = int(prm[NCOL]), int(prm[NROW])
     rr, cc = r + a, c + b
     if rr < 1 or rr > nrow - 2 or cc < 1 or cc > ncol - 2:
-        return queue, tail, count
+        return tail, count
     hj, fj, free_j = _free(grid, soil, oh, floor, rr, cc, ncol)
     if not free_j:
-        return queue, tail, count
+        return tail, count
     j = rr * ncol + cc
     if _settle_pair(soil, oh, oc, i, hi, fi, j, hj, fj, lim[d]) <= 0.0:
-        return queue, tail, count  # in repose, or capped by an intruder: settled
-    queue, tail, count = _push(queue, tail, count, mark, j, rr, cc, moved)
-    return _push(queue, tail, count, mark, i, r, c, moved)
+        return tail, count  # in repose, or capped by an intruder: settled
+    tail, count = _push(queue, tail, count, mark, j, rr, cc, seen)
+    return _push(queue, tail, count, mark, i, r, c, seen)
 
 
 @numba.njit(**_JIT)

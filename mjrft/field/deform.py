@@ -94,8 +94,10 @@ def update(m_rec, e_rec):
                 prm, grid, block, s.soil_floor, s.soil_owner, kb, k, vol, mx, my, v, s.soil_stats
             )
     # Relax where the intruders are, where they were (a withdrawn rod leaves a hole to slump)
-    # and where the last update left slopes unrelaxed.
-    box = np.empty(4)
+    # and where the last update left slopes unrelaxed. The boxes and the queue are rows of the
+    # field's work arrays: an array allocated here would cost an atomic reference count at
+    # every pair of vertices the relaxation visits.
+    box, seen = s.soil_box[nk + 1], s.soil_box[nk + 2]
     box[:] = allbox
     _head_union(box, block, surface.SOIL_FOOT)
     _head_union(box, block, surface.SOIL_PENDING)
@@ -106,8 +108,10 @@ def update(m_rec, e_rec):
         block[surface.SOIL_TIME] = d.time[0]
         return bad
     box[0], box[1], box[2], box[3] = box[0] - 1, box[1] + 1, box[2] - 1, box[3] + 1
-    seen = box.copy()
-    converged = soil.relax(prm, grid, block, s.soil_floor, s.soil_owner, box, seen, s.soil_stats)
+    seen[:] = box
+    converged = soil.relax(
+        prm, grid, block, s.soil_floor, s.soil_owner, s.soil_queue, box, seen, s.soil_stats
+    )
     _head_store(block, surface.SOIL_PENDING, box, not converged)
     soil.finish(prm, grid, block, s.soil_floor, s.soil_owner, seen, d.time[0])
     return bad

@@ -122,7 +122,8 @@ class DataState:
             mech_vec=np.zeros((3, max(nv, 6 * nk))),
             soil_floor=np.full(soil_shape, np.inf),
             soil_owner=np.full(soil_shape, -1, dtype=np.int64),
-            soil_box=np.zeros((nk + 1, 4)),
+            soil_queue=np.zeros(soil_shape[0] * soil_shape[1], dtype=np.int64),
+            soil_box=np.zeros((nk + 3, 4)),
             soil_stats=np.zeros(N_SOIL_STATS),
         )
         self.entry = pack(ENTRY_RECORD, (self.mjdata, self.arrays), {"nring": ring, "na": na})

@@ -189,7 +189,9 @@ class FieldData(NamedTuple):
     mech_vec: np.ndarray  # (3, max(nv, 6 ntbody)) work vectors
     soil_floor: np.ndarray  # (nrow, ncol) work: intruders' lowest point over each vertex [m]
     soil_owner: np.ndarray  # (nrow, ncol) work: the tagged body occupying it, -1 none
-    soil_box: np.ndarray  # (ntbody + 1, 4) work: vertex boxes of footprints, and their union
+    soil_queue: np.ndarray  # (nrow ncol,) work: the relaxation's queue of vertices
+    soil_box: np.ndarray  # (ntbody + 3, 4) work: vertex boxes of footprints, their union, the
+    #   box the relaxation starts from and the box it has seen
     soil_stats: np.ndarray  # (soil.N_SOIL_STATS,) counters (soil.SOIL_STATS)
 
 
@@ -347,7 +349,8 @@ def unpack_entry(m, address):
         _f(t.mech_L, (nv, nv)),
         _f(t.mech_J, (6 * nk, nv)), _f(t.mech_X, (6 * nk, nv)), _f(t.mech_A, (6 * nk, 6 * nk)),
         _f(t.mech_S, (6 * nk, 6 * nk)), _f(t.mech_vec, (3, max(nv, 6 * nk))),
-        _f(t.soil_floor, soil_shape), _i(t.soil_owner, soil_shape), _f(t.soil_box, (nk + 1, 4)),
+        _f(t.soil_floor, soil_shape), _i(t.soil_owner, soil_shape),
+        _i(t.soil_queue, soil_shape[0] * soil_shape[1]), _f(t.soil_box, (nk + 3, 4)),
         _f(t.soil_stats, N_SOIL_STATS),
     )  # fmt: skip
     return d, s
