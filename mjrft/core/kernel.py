@@ -406,6 +406,17 @@ def _corner_values(patch, cf, later, held, nl, rot, ang_b, lin_b, surface_prm, s
             held[_HELD_D + q, j] = top - z
     if flat:
         return
+    if surface_prm[surface.KIND] == surface.PLANE:  # the centroid's depth plus the plane's rise
+        gx, gy = surface_prm[surface.GX], surface_prm[surface.GY]
+        a0 = gx * rot[0, 0] + gy * rot[1, 0] - r20
+        a1 = gx * rot[0, 1] + gy * rot[1, 1] - r21
+        a2 = gx * rot[0, 2] + gy * rot[1, 2] - r22
+        for j in range(nl):
+            i = later[j]
+            for q in range(3):
+                o0, o1, o2 = patch[i, 3 * q], patch[i, 3 * q + 1], patch[i, 3 * q + 2]
+                held[_HELD_D + q, j] = held[_HELD_DEPTH, j] + (a0 * o0 + a1 * o1 + a2 * o2)
+        return
     # An uneven surface: look the height up under each corner (kept out of the loop above, so
     # that a flat surface's loop stays small).
     for j in range(nl):
@@ -690,6 +701,16 @@ def body_wrench(
     band = quadrature.UNEVEN_REACH  # corner depths are within band * reach of the centroid's
     spin = math.sqrt(wx * wx + wy * wy + wz * wz)
     top = surface.ceiling(surface_prm, soil)  # an element above it is dry wherever it is
+    # The first test of an element is top - (k . c + kz) for its body-frame centroid c: its
+    # height below the ceiling, or under a plane (whose ceiling, +inf, would clear nothing) its
+    # exact depth z0 + gx x + gy y - z, affine in c. One dot product either way.
+    plane = surface_prm[surface.KIND] == surface.PLANE
+    k0, k1, k2, kz = r20, r21, r22, oz
+    if plane:
+        gx, gy = surface_prm[surface.GX], surface_prm[surface.GY]
+        k0, k1, k2 = r20 - gx * r00 - gy * r10, r21 - gx * r01 - gy * r11, r22 - gx * r02 - gy * r12
+        kz = oz - gx * ox - gy * oy
+        top = surface_prm[surface.Z0]
     lam_rho = dynamic_coefficient(co)
     dyn = lam_rho > 0.0
     # The body's motion in its own frame, v(c) = lin_b + ang_b x c at the body point c, for the
@@ -711,14 +732,14 @@ def body_wrench(
             # Dry elements leave here (a well-predicted branch: neighbouring triangles of a mesh
             # are dry together), after three multiply-adds.
             cx, cy, cz = cf[3 * i], cf[3 * i + 1], cf[3 * i + 2]
-            pz = r20 * cx + r21 * cy + r22 * cz + oz
-            depth = top - pz
+            depth = top - (k0 * cx + k1 * cy + k2 * cz + kz)
             ri = reach[i]
             if depth <= -band * ri:
                 continue
             px = r00 * cx + r01 * cy + r02 * cz + ox
             py = r10 * cx + r11 * cy + r12 * cz + oy
-            if not flat:
+            pz = r20 * cx + r21 * cy + r22 * cz + oz
+            if not flat and not plane:
                 depth = surface.depth(surface_prm, surface_grid, soil, px, py, pz)
                 if depth <= -band * ri:
                     continue

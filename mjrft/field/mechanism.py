@@ -187,15 +187,22 @@ def submerged(m, d, s, k):
     wrench cannot tell: at rest it is zero)."""
     b = m.tbody_bodyid[k]
     flat = m.surface_prm[surface.KIND] == surface.FLAT
-    top = m.surface_prm[surface.Z0]
     for g in range(m.tbody_geomadr[k], m.tbody_geomadr[k] + m.tbody_geomnum[k]):
         if s.cull[g]:
             continue
+        # An element above the highest surface point near its geom is dry wherever it is: the
+        # height alone (three multiply-adds an element) clears it, as it decides under a flat
+        # surface, before the surface is looked up.
+        geom = m.tgeom_geomid[g]
+        r = m.tgeom_rbound[g]
+        top = surface.highest_near(
+            m.surface_prm, d.userdata, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r
+        ) if r > 0.0 else surface.ceiling(m.surface_prm, d.userdata)  # fmt: skip
         for e in range(m.tgeom_elemadr[g], m.tgeom_elemadr[g] + m.tgeom_elemnum[g]):
             z = d.xpos[b, 2]
             for c in range(3):
                 z += d.xmat[b, 2, c] * m.elem_pos[e, c]
-            if flat:  # the height alone (three multiply-adds an element)
+            if flat or z >= top:
                 if z < top:
                     return True
                 continue
