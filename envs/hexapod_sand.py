@@ -25,7 +25,8 @@ duration [m/s].
 
 Episode: the keyframe pose (tripod A down, B up) turned by a random gait phase in [0, 2 pi), the
 torso lowered or raised until its lowest RFT element touches the surface, everything at rest;
-``time_limit`` (default 20 s); no termination otherwise.
+``time_limit`` (default 20 s); where the medium has a region (``mjrft:region``, as the
+deforming lane), the episode also ends, with discount 0, once the torso leaves it.
 
 ``forward_speed`` measures the steady walking speed at one gait frequency; the script
 ``scripts/hexapod_frequency_sweep.py`` sweeps it and plots docs/hexapod_speed_vs_frequency.png.
@@ -62,7 +63,8 @@ HIP_QPOS = slice(7, 13)  # hip angles in qpos (after the free joint)
 HIP_QVEL = slice(6, 12)
 #: The medium's region when the ground deforms [m, world]: (xmin, ymin, zmin, xmax, ymax, zmax),
 #: the walk's +x lane for 3.3 m (20 s at the 1 Hz gait's 15 cm/s, the default episode), 40 cm
-#: wide (the robot spans 23 cm), 15 cm deep (the legs reach 9 cm below the hips).
+#: wide (the robot spans 23 cm), 15 cm deep (the legs reach 9 cm below the hips). An episode
+#: ends when the torso leaves it (HexapodWalk.get_termination).
 DEFORM_REGION = (-0.3, -0.2, -0.15, 3.3, 0.2, 0.1)
 
 
@@ -120,6 +122,17 @@ class HexapodWalk(base.Task):
 
     def get_reward(self, physics: GranularPhysics) -> float:
         return self._reward
+
+    def get_termination(self, physics: GranularPhysics) -> float | None:
+        """0 (the episode ends, no future reward) once the torso's (x, y) leaves the medium's
+        region (``mjrft:region``, as on the deforming lane): beyond it there is no medium and
+        the robot would fall; else None (the episode goes on)."""
+        region = physics.field.region
+        if region is None:
+            return None
+        x, y = physics.data.qpos[0], physics.data.qpos[1]
+        inside = region[0, 0] <= x <= region[1, 0] and region[0, 1] <= y <= region[1, 1]
+        return None if inside else 0.0
 
     def get_observation(self, physics: GranularPhysics) -> collections.OrderedDict:
         d = physics.data

@@ -463,6 +463,33 @@ def test_hexapod_on_deforming_ground_leaves_footprints_and_conserves_volume():
         hexapod_sand.make(deform_cell=0.005, slope=(10.0, 0.0))
 
 
+def test_hexapod_episode_ends_when_it_leaves_the_deforming_lane():
+    """Beyond the medium's region there is no medium: an episode on the deforming lane ends
+    (discount 0) at the control step whose torso is past its end, and not before; without a
+    region the medium is unbounded and nothing ends it."""
+    env = hexapod_sand.make(seed=0, time_limit=float("inf"), deform_cell=0.01)
+    try:
+        env.reset()
+        physics = env.physics
+        xmax = hexapod_sand.DEFORM_REGION[3]
+        assert env.step(np.array([1.0, math.pi])).discount == 1.0
+        with physics.reset_context():
+            physics.data.qpos[0] = xmax + 0.01  # the torso just past the lane's end
+        ts = env.step(np.array([1.0, math.pi]))
+        assert ts.last() and ts.discount == 0.0
+        assert env.step(np.array([1.0, math.pi])).first()  # the next step starts an episode
+    finally:
+        env.close()
+    env = hexapod_sand.make(seed=0, time_limit=float("inf"))
+    try:
+        env.reset()
+        with env.physics.reset_context():
+            env.physics.data.qpos[0] = xmax + 1.0
+        assert env.step(np.array([1.0, math.pi])).discount == 1.0
+    finally:
+        env.close()
+
+
 # --- gymnasium ----------------------------------------------------------------------------------
 
 
