@@ -331,8 +331,8 @@ def relax(prm, grid, soil, floor, mark, queue, box, seen, stats):
     box holds the queue's bounding box if it did not empty (the slopes left unrelaxed), and
     seen (4,) has grown over every vertex visited. mark (nrow, ncol): soil_owner, which marks
     the waiting vertices QUEUED (and is cleared by ``finish``); queue (nrow * ncol,) int64:
-    work space for the queue. A vertex an intruder presses on
-    neither gives nor takes (``_settle_pair`` for the gap under a hovering one)."""
+    work space for the queue. A vertex an intruder presses on neither gives nor takes
+    (``_settle_pair`` for the gap under a hovering one)."""
     ncol, nrow = int(prm[NCOL]), int(prm[NROW])
     oh, oc, _ = _offsets(prm)
     t = prm[TAN_REPOSE]
