@@ -39,6 +39,19 @@ def first_bad_body(m_rec, e_rec):
 
 
 @numba.njit(inline="always", **_JIT)
+def geom_top(m, d, g):
+    """An upper bound [m] of the surface height under tagged geom g's bounding sphere (the
+    surface's ceiling if its radius is 0, unknown to MuJoCo)."""
+    r = m.tgeom_rbound[g]
+    if r <= 0.0:
+        return surface.ceiling(m.surface_prm, d.userdata)
+    geom = m.tgeom_geomid[g]
+    return surface.highest_near(
+        m.surface_prm, d.userdata, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r
+    )
+
+
+@numba.njit(inline="always", **_JIT)
 def culled(m, d, g):
     """True if tagged geom g's bounding sphere cannot touch the medium: entirely above the
     surface or outside the region. A radius of 0 (unknown to MuJoCo) never culls."""
@@ -46,10 +59,7 @@ def culled(m, d, g):
     if r <= 0.0:
         return False
     geom = m.tgeom_geomid[g]
-    top = surface.highest_near(
-        m.surface_prm, d.userdata, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r
-    )
-    if d.geom_xpos[geom, 2] - r >= top:
+    if d.geom_xpos[geom, 2] - r >= geom_top(m, d, g):
         return True
     if m.use_region:
         for c in range(3):

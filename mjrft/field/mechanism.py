@@ -53,7 +53,7 @@ import numba
 import numpy as np
 
 from mjrft.core import surface
-from mjrft.field.evaluate import in_play, twist_wrench
+from mjrft.field.evaluate import geom_top, in_play, twist_wrench
 from mjrft.field.lowspeed import (
     PURE,
     ROUNDING,
@@ -193,11 +193,7 @@ def submerged(m, d, s, k):
         # An element above the highest surface point near its geom is dry wherever it is: the
         # height alone (three multiply-adds an element) clears it, as it decides under a flat
         # surface, before the surface is looked up.
-        geom = m.tgeom_geomid[g]
-        r = m.tgeom_rbound[g]
-        top = surface.highest_near(
-            m.surface_prm, d.userdata, d.geom_xpos[geom, 0], d.geom_xpos[geom, 1], r
-        ) if r > 0.0 else surface.ceiling(m.surface_prm, d.userdata)  # fmt: skip
+        top = geom_top(m, d, g)
         for e in range(m.tgeom_elemadr[g], m.tgeom_elemadr[g] + m.tgeom_elemnum[g]):
             z = d.xpos[b, 2]
             for c in range(3):
