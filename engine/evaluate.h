@@ -1,0 +1,39 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+//
+// The RFT model on tagged bodies: the state check, culling by bounding spheres, and wrenches at
+// a twist. World frame; wrenches are force [N] then torque [N m] about the body's CoM (xipos).
+
+#ifndef MJRFT_ENGINE_EVALUATE_H_
+#define MJRFT_ENGINE_EVALUATE_H_
+
+#include "state.h"
+
+namespace mjrft {
+
+// Index k of the first tagged body with a non-finite position or velocity, or -1.
+int FirstBadBody(const mjModel* m, const mjData* d, const Tables& t);
+
+// An upper bound [m] of the surface height under tagged geom g's bounding sphere.
+f64 GeomTop(const mjData* d, const Tables& t, const State& s, int g);
+
+// True if tagged geom g's bounding sphere cannot touch the medium (above the surface or
+// outside the region). A radius of 0 never culls.
+bool Culled(const mjData* d, const Tables& t, const State& s, int g);
+
+// Sets out (6) to the RFT wrench on tagged body k's geoms in play (not culled this pass), the
+// body moving with the twist (v (3) at the CoM [m/s], omega (3) [rad/s]). Element forces go to
+// s.scratch. Returns #evaluated; acting (if not null) gets #acting.
+int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
+                const f64* v, const f64* omega, f64* out, int* acting);
+
+// True if a geom of tagged body k may touch the medium this pass.
+bool InPlay(const Tables& t, const State& s, int k);
+
+// The pure model on every tagged body that neither keeps nor freezes its wrench this pass:
+// culls geoms (s.cull), zeroes element forces of geoms that left the medium, writes s.wrench
+// rows and s.elem_force. Returns #evaluated; acting gets #acting.
+int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, int* acting);
+
+}  // namespace mjrft
+
+#endif  // MJRFT_ENGINE_EVALUATE_H_

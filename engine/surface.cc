@@ -1,0 +1,99 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+
+#include "surface.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace mjrft::surface {
+
+f64 GridHeight(const f64* prm, const f64* grid, f64 x, f64 y) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 u = (x - prm[kX0]) / prm[kDx];
+  f64 v = (y - prm[kY0]) / prm[kDy];
+  u = std::min(std::max(u, 0.0), ncol - 1.0);
+  v = std::min(std::max(v, 0.0), nrow - 1.0);
+  i64 c = std::min(static_cast<i64>(u), ncol - 2);
+  i64 r = std::min(static_cast<i64>(v), nrow - 2);
+  f64 fu = u - c, fv = v - r;
+  f64 h00 = grid[r * ncol + c];
+  f64 h11 = grid[(r + 1) * ncol + c + 1];
+  if (fu >= fv) {
+    f64 h10 = grid[r * ncol + c + 1];
+    return h00 + fu * (h10 - h00) + fv * (h11 - h10);
+  }
+  f64 h01 = grid[(r + 1) * ncol + c];
+  return h00 + fv * (h01 - h00) + fu * (h11 - h01);
+}
+
+Cell CellOf(const f64* prm, f64 x, f64 y) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 u = std::min(std::max((x - prm[kX0]) / prm[kDx], 0.0), ncol - 1.0);
+  f64 v = std::min(std::max((y - prm[kY0]) / prm[kDy], 0.0), nrow - 1.0);
+  i64 c = std::min(static_cast<i64>(u), ncol - 2);
+  i64 r = std::min(static_cast<i64>(v), nrow - 2);
+  return {r, c, u - c, v - r, u - c >= v - r};
+}
+
+void SoilVertex(const f64* prm, const f64* grid, const f64* soil, i64 r, i64 c, f64 out[3]) {
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  i64 n = ncol * static_cast<i64>(prm[kNrow]);
+  i64 i = kSoilHead + r * ncol + c;
+  f64 base = grid[r * ncol + c];
+  out[0] = base + soil[i];
+  out[1] = base + soil[i + n];
+  out[2] = soil[i + 2 * n];
+}
+
+f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+  Cell k = CellOf(prm, x, y);
+  f64 v00[3], v10[3], v01[3], v11[3];
+  SoilVertex(prm, grid, soil, k.r, k.c, v00);
+  SoilVertex(prm, grid, soil, k.r, k.c + 1, v10);
+  SoilVertex(prm, grid, soil, k.r + 1, k.c, v01);
+  SoilVertex(prm, grid, soil, k.r + 1, k.c + 1, v11);
+  f64 h = Tri(v00[0], v10[0], v01[0], v11[0], k.fu, k.fv, k.upper);
+  if (z >= h + kSoilContact) return 0.0;
+  f64 depth = std::max(h - z, 0.0);
+  if (z < Tri(v00[1], v10[1], v01[1], v11[1], k.fu, k.fv, k.upper) + kSoilContact) {
+    depth += Tri(v00[2], v10[2], v01[2], v11[2], k.fu, k.fv, k.upper);
+  }
+  return depth;
+}
+
+f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y) {
+  f64 kind = prm[kKind];
+  if (kind == kFlat) return prm[kZ0];
+  if (kind == kPlane) return prm[kZ0] + prm[kGx] * x + prm[kGy] * y;
+  if (kind == kGrid) return GridHeight(prm, grid, x, y);
+  Cell k = CellOf(prm, x, y);
+  f64 v00[3], v10[3], v01[3], v11[3];
+  SoilVertex(prm, grid, soil, k.r, k.c, v00);
+  SoilVertex(prm, grid, soil, k.r, k.c + 1, v10);
+  SoilVertex(prm, grid, soil, k.r + 1, k.c, v01);
+  SoilVertex(prm, grid, soil, k.r + 1, k.c + 1, v11);
+  return Tri(v00[0], v10[0], v01[0], v11[0], k.fu, k.fv, k.upper);
+}
+
+f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+  if (prm[kKind] == kSoil) return SoilDepth(prm, grid, soil, x, y, z);
+  return Height(prm, grid, soil, x, y) - z;
+}
+
+f64 Ceiling(const f64* prm, const f64* soil) {
+  f64 kind = prm[kKind];
+  if (kind == kFlat) return prm[kZ0];
+  if (kind == kPlane) return std::numeric_limits<f64>::infinity();
+  if (kind == kGrid) return prm[kZmax];
+  return prm[kZmax] + soil[kSoilZoff] + kSoilContact;
+}
+
+f64 HighestNear(const f64* prm, const f64* soil, f64 x, f64 y, f64 r) {
+  if (prm[kKind] == kPlane) {
+    return prm[kZ0] + prm[kGx] * x + prm[kGy] * y + r * std::hypot(prm[kGx], prm[kGy]);
+  }
+  return Ceiling(prm, soil);
+}
+
+}  // namespace mjrft::surface

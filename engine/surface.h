@@ -1,0 +1,79 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+//
+// The medium's free surface as a function of horizontal position (world frame): flat, a tilted
+// plane, a height grid (a MuJoCo height field) or a deforming grid with memory (soil.h). Depth
+// is measured vertically: a point at (x, y, z) is at depth height(x, y) - z (docs/field.md,
+// "Surfaces"; mjrft.core.surface states the same rules in Python).
+//
+// A surface is prm (kPrmSize), grid (nrow x ncol heights [m], row r at y0 + r dy, column c at
+// x0 + c dx) and, for a deforming grid, the soil block (per-mjData state, state.h).
+
+#ifndef MJRFT_ENGINE_SURFACE_H_
+#define MJRFT_ENGINE_SURFACE_H_
+
+#include "tables.h"
+
+namespace mjrft::surface {
+
+// Kinds (prm[kKind]).
+constexpr int kFlat = 0, kPlane = 1, kGrid = 2, kSoil = 3;
+// Slots of prm; kSoil only: kTanRepose (tangent of the angle of repose), kEvery (steps between
+// updates of the ground).
+enum Prm {
+  kKind, kZ0, kGx, kGy, kX0, kY0, kDx, kDy, kNcol, kNrow, kZmax, kTanRepose, kEvery
+};
+// Head of a soil block: rise of the highest point above prm[kZmax] [m]; 1 once the grid
+// followed a configuration; its time [s]; the vertex box (r0, r1, c0, c1) still relaxing; the
+// box of the intruders' last footprints. Then the offsets of h and of c [m] and the memory p
+// [m], nrow * ncol each (row-major). All zero: the initial surface.
+constexpr int kSoilZoff = 0, kSoilDone = 1, kSoilTime = 2, kSoilPending = 3, kSoilFoot = 7;
+constexpr int kSoilHead = 11;
+// A point within this height [m] above a deforming surface still touches it (0.1 um: rounding
+// must not decide whether an intruder touches the floor it just pressed).
+constexpr f64 kSoilContact = 1e-7;
+
+// Size of the soil block of an nrow x ncol deforming grid.
+inline i64 SoilBlock(i64 nrow, i64 ncol) { return kSoilHead + 3 * nrow * ncol; }
+
+// Height [m] of a kGrid surface at (x, y) [m]: linear over the two triangles of each cell
+// (diagonal (c, r)-(c + 1, r + 1), as MuJoCo's height-field collision), the edge beyond.
+f64 GridHeight(const f64* prm, const f64* grid, f64 x, f64 y);
+
+// (h, c, p) [m] at vertex (r, c) of a deforming grid: surface, compacted level, memory.
+void SoilVertex(const f64* prm, const f64* grid, const f64* soil, i64 r, i64 c, f64 out[3]);
+
+// Resisting depth [m] of the point (x, y, z) under a deforming surface (<= 0: not in it).
+f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z);
+
+// Surface height [m] at the horizontal position (x, y) [m].
+f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y);
+
+// Resisting depth [m] of the world point (x, y, z); <= 0 outside the medium.
+f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z);
+
+// An upper bound [m] of the height below which a point can be in the medium anywhere: the flat
+// height, a grid's highest point, or +inf for a plane.
+f64 Ceiling(const f64* prm, const f64* soil);
+
+// An upper bound [m] of the surface height within horizontal distance r [m] of (x, y).
+f64 HighestNear(const f64* prm, const f64* soil, f64 x, f64 y, f64 r);
+
+// The cell of (x, y) in a grid: row r, column c, position (fu, fv) inside it, and whether it
+// lies in the triangle (c, r)-(c + 1, r)-(c + 1, r + 1) (fu >= fv).
+struct Cell {
+  i64 r, c;
+  f64 fu, fv;
+  bool upper;
+};
+Cell CellOf(const f64* prm, f64 x, f64 y);
+
+// Linear interpolation over a cell's triangle: a00 at (c, r), a10 at (c + 1, r), a01 at
+// (c, r + 1), a11 at (c + 1, r + 1).
+inline f64 Tri(f64 a00, f64 a10, f64 a01, f64 a11, f64 fu, f64 fv, bool upper) {
+  if (upper) return a00 + fu * (a10 - a00) + fv * (a11 - a10);
+  return a00 + fv * (a01 - a00) + fu * (a11 - a01);
+}
+
+}  // namespace mjrft::surface
+
+#endif  // MJRFT_ENGINE_SURFACE_H_
