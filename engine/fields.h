@@ -69,51 +69,57 @@
   X(f64, elem_reach, "nelem", "largest centroid-corner distance [m]")                    \
   X(f64, elem_patch, "nelem, PATCH_SIZE", "corner offsets and normals, body frame")
 
-// The engine's state for one mjData: X(type, name, shape, meaning). Sizes: nk = ntbody,
-// ng = ntgeom, soil_nrow/soil_ncol = surface_nrow/ncol with a deforming ground, else 1.
-// "persistent" arrays carry from pass to pass (they live in mjData.plugin_state); the others
-// are work arrays of one pass (plugin_data).
-#define MJRFT_STATE_ARRAYS(X)                                                                 \
-  X(f64, user, "nbody, 6", "persistent: user part of each tagged row of xfrc_applied")        \
-  X(f64, written, "nbody, 6", "persistent: what the last installed pass wrote there")         \
-  X(f64, user_in, "nbody, 6", "other applied wrenches for the explicit path")                 \
-  X(f64, wrench, "nbody, 6", "persistent: this pass's RFT wrench (held rows: stage 1's)")     \
-  X(f64, elem_force, "nelem, 3", "element forces of this pass's pure model [N]")              \
-  X(f64, scratch, "nelem, 3", "element forces of the treatment's extra evaluations")          \
-  X(f64, rk4, "RK4_HEAD + RK4_BODY * nk", "persistent: the RK4 stage record (rk4.h)")         \
-  X(i64, geom_dirty, "ng", "persistent: 1 where elem_force may be nonzero")                   \
-  X(i64, cull, "ng", "1 where the geom cannot touch the medium this pass")                    \
-  X(i64, keep, "nk", "1: keeps its RK4 step's first-stage wrench")                            \
-  X(i64, frz, "nk", "1: feels the model with stage 1's twist")                                \
-  X(i64, slow, "nk", "1: later RK4 stages must not evaluate the pure model")                  \
-  X(f64, frozen, "nk, 12", "stage 1's twist and implicit correction")                         \
-  X(i64, decision, "nk", "persistent: the treatment's decisions (lowspeed.h)")                \
-  X(i64, stats, "N_STATS", "persistent: work counters (STATS)")                               \
-  X(i64, status, "1", "persistent: status of the last pass (forward.h)")                      \
-  X(f64, mech_tau, "nv", "persistent: generalized force the last pass applied")               \
-  X(f64, mech_time, "3", "persistent: time of the last installed pass, seen, predictor ok")   \
-  X(f64, mech_prev, "nk, 6", "persistent: wrench of each body held in the last pass")         \
-  X(i64, mech_held, "nk", "persistent: 1 if held in the last pass")                           \
-  X(f64, mech_in, "2, nv", "persistent: qacc and mech_tau as the first pass at t read them")  \
-  X(f64, mech_in_prev, "nk, 6", "persistent: mech_prev as that pass read it")                 \
-  X(f64, mech_in_force, "nu", "persistent: actuator_force as that pass read it")              \
-  X(i64, mech_in_held, "nk", "persistent: mech_held as that pass read it")                    \
-  X(f64, mech_R, "nk, 6", "persistent: the medium's resistance last evaluated for a hold")    \
-  X(f64, mech_key, "nk, 19", "persistent: where R was evaluated (CoM, frame, direction)")     \
-  X(f64, mech_M, "nv, nv", "cache: M of the configuration the factors belong to")             \
-  X(f64, mech_cfg, "1 + nk + 6 * nv + 6 * nk", "cache: that configuration (-1: none)")        \
-  X(i64, mech_hkey, "1 + 6 * nk", "cache: held rows of mech_S (-1 none, -2 no mech_A)")       \
-  X(f64, mech_L, "nv, nv", "work: M, then its Cholesky factor")                               \
-  X(f64, mech_J, "6 * nk, nv", "work: Jacobians of the bodies in play")                       \
-  X(f64, mech_X, "6 * nk, nv", "work: rows of L^-1 J^T")                                      \
-  X(f64, mech_A, "6 * nk, 6 * nk", "work: J M^-1 J^T")                                        \
-  X(f64, mech_S, "6 * nk, 6 * nk", "work: the held bodies' block, factored")                  \
-  X(f64, mech_vec, "3, max(nv, 6 * nk)", "work vectors")                                      \
-  X(f64, soil_floor, "soil_nrow, soil_ncol", "work: intruders' lowest point per vertex [m]")  \
-  X(i64, soil_owner, "soil_nrow, soil_ncol", "work: the tagged body over it, -1 none")        \
-  X(i64, soil_queue, "soil_nrow * soil_ncol", "work: the relaxation's queue of vertices")     \
-  X(f64, soil_box, "nk + 3, 4", "work: vertex boxes of footprints and of the relaxation")     \
-  X(f64, soil_stats, "N_SOIL_STATS", "persistent: ground counters (soil.h)")                  \
-  X(f64, soil, "nsoil", "persistent: the deforming ground's block (surface.h)")
+// The engine's state for one mjData: X(type, name, size, meaning); size is an expression in nbody,
+// nv, nu (mjModel), nelem, ng = ntgeom, nk = ntbody, nsoil (Tables), and soil_nrow, soil_ncol
+// (surface_nrow and surface_ncol with a deforming ground, else 1). Persistent arrays carry from
+// pass to pass and live in mjData.plugin_state (so mj_copyData, mj_resetData, mj_getState and
+// mj_setState carry them; i64 values are stored bit for bit in their 8-byte slots); work arrays
+// live in the instance's plugin_data.
+#define MJRFT_STATE_PERSISTENT(X)                                                          \
+  X(f64, user, nbody * 6, "user part of each tagged row of xfrc_applied")                 \
+  X(f64, written, nbody * 6, "what the last installed pass wrote there")                  \
+  X(f64, wrench, nbody * 6, "this pass's RFT wrench (held rows: stage 1's)")              \
+  X(f64, rk4, kRk4Head + kRk4Body * nk, "the RK4 stage record (rk4.h)")                   \
+  X(i64, geom_dirty, ng, "1 where elem_force may be nonzero")                             \
+  X(i64, decision, nk, "the treatment's decisions (lowspeed.h)")                          \
+  X(i64, stats, kNStats, "work counters: calls, evaluated, acting, stuck, slipping, implicit") \
+  X(i64, status, 1, "status of the last pass (forward.h)")                                \
+  X(f64, mech_tau, nv, "generalized force the last pass applied to mechanism bodies")     \
+  X(f64, mech_time, 3, "time of the last installed pass, 1 once seen, 1 if predictor ok") \
+  X(f64, mech_prev, nk * 6, "wrench of each body held in the last pass")                  \
+  X(i64, mech_held, nk, "1 if held in the last pass")                                     \
+  X(f64, mech_in, 2 * nv, "qacc and mech_tau as the first pass at this time read them")   \
+  X(f64, mech_in_prev, nk * 6, "mech_prev as that pass read it")                          \
+  X(f64, mech_in_force, nu, "actuator_force as that pass read it")                        \
+  X(i64, mech_in_held, nk, "mech_held as that pass read it")                              \
+  X(f64, mech_R, nk * 6, "the medium's resistance last evaluated for a hold")             \
+  X(f64, mech_key, nk * 19, "where R was evaluated: CoM, inertial frame, direction, valid") \
+  X(f64, soil_stats, kNSoilStats, "ground counters (soil.h)")                             \
+  X(f64, soil, nsoil, "the deforming ground's block (surface.h)")
+
+#define MJRFT_STATE_WORK(X)                                                                \
+  X(f64, user_in, nbody * 6, "other applied wrenches for the explicit path")              \
+  X(f64, elem_force, nelem * 3, "element forces of this pass's pure model [N]")           \
+  X(f64, scratch, nelem * 3, "element forces of the treatment's extra evaluations")       \
+  X(i64, cull, ng, "1 where the geom cannot touch the medium this pass")                  \
+  X(i64, keep, nk, "1: keeps its RK4 step's first-stage wrench")                          \
+  X(i64, frz, nk, "1: feels the model with stage 1's twist")                              \
+  X(i64, slow, nk, "1: later RK4 stages must not evaluate the pure model")                \
+  X(f64, frozen, nk * 12, "stage 1's twist and implicit correction")                      \
+  X(f64, mech_M, nv * nv, "cache: M of the configuration the factors belong to")          \
+  X(f64, mech_cfg, 1 + nk + 6 * nv + 6 * nk, "cache: that configuration (-1: none)")      \
+  X(i64, mech_hkey, 1 + 6 * nk, "cache: held rows of mech_S (-1 none, -2 no mech_A)")     \
+  X(f64, mech_L, nv * nv, "work: M, then its Cholesky factor")                            \
+  X(f64, mech_J, 6 * nk * nv, "work: Jacobians of the bodies in play")                    \
+  X(f64, mech_X, 6 * nk * nv, "work: rows of L^-1 J^T")                                   \
+  X(f64, mech_A, 36 * nk * nk, "work: J M^-1 J^T")                                        \
+  X(f64, mech_S, 36 * nk * nk, "work: the held bodies' block, factored")                  \
+  X(f64, mech_vec, 3 * (nv > 6 * nk ? nv : 6 * nk), "work vectors (3 rows)")              \
+  X(f64, soil_floor, soil_nrow * soil_ncol, "work: intruders' lowest point per vertex [m]") \
+  X(i64, soil_owner, soil_nrow * soil_ncol, "work: the tagged body over it, -1 none")     \
+  X(i64, soil_queue, soil_nrow * soil_ncol, "work: the relaxation's queue of vertices")   \
+  X(f64, soil_box, (nk + 3) * 4, "work: vertex boxes of footprints and of the relaxation")
+
+#define MJRFT_STATE_ARRAYS(X) MJRFT_STATE_PERSISTENT(X) MJRFT_STATE_WORK(X)
 
 #endif  // MJRFT_ENGINE_FIELDS_H_

@@ -47,7 +47,11 @@ def table_arrays() -> list[tuple[str, str]]:
 
 
 def state_arrays() -> list[tuple[str, str]]:
-    return re.findall(r"X\((f64|i64), (\w+),", _macro("MJRFT_STATE_ARRAYS"))
+    """(type, name) of the State's arrays: the persistent ones, then the work arrays."""
+    return [
+        *re.findall(r"X\((f64|i64), (\w+),", _macro("MJRFT_STATE_PERSISTENT")),
+        *re.findall(r"X\((f64|i64), (\w+),", _macro("MJRFT_STATE_WORK")),
+    ]
 
 
 class Tables(ctypes.Structure):
