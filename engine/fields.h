@@ -40,34 +40,34 @@
 
 // Arrays of the static tables: X(type, name, shape, meaning).
 #define MJRFT_TABLE_ARRAYS(X)                                                            \
-  X(f64, elem_pos, "nelem, 3", "triangle centroids [m], body frame")                     \
-  X(f64, elem_normal, "nelem, 3", "outward unit normals, body frame")                    \
-  X(f64, elem_area, "nelem", "areas [m^2]")                                              \
-  X(i64, tgeom_geomid, "ntgeom", "MuJoCo geom id of each tagged geom")                   \
-  X(i64, tgeom_tbody, "ntgeom", "its tagged body (index into tbody_*)")                  \
-  X(i64, tgeom_elemadr, "ntgeom", "first element")                                       \
-  X(i64, tgeom_elemnum, "ntgeom", "number of elements")                                  \
-  X(f64, tgeom_rbound, "ntgeom", "bounding-sphere radius [m] (0: never culled)")        \
-  X(i64, tbody_bodyid, "ntbody", "MuJoCo body id of each tagged body")                   \
-  X(i64, tbody_rootid, "ntbody", "its root body (cvel's reference point)")               \
-  X(i64, tbody_geomadr, "ntbody", "first tagged geom")                                   \
-  X(i64, tbody_geomnum, "ntbody", "number of tagged geoms")                              \
-  X(i64, tbody_treat, "ntbody", "1 if the low-speed treatment may act on it")            \
-  X(f64, region, "2, 3", "world box [m]: min corner, max corner")                        \
-  X(f64, coef, "ncoef", "kernel coefficients (Material.kernel_coefficients)")            \
-  X(i64, tbody_mech, "ntbody", "1 if it is a body in a mechanism")                       \
-  X(i64, tbody_dofmask, "ntbody, nv", "1 where dof j moves tagged body k")               \
-  X(i64, actuator_affine, "nu", "1: gain fixed/affine, bias none/affine, not actearly")  \
-  X(i64, actuator_gainaffine, "nu", "1 if its gain is affine (else fixed)")              \
-  X(i64, actuator_biasaffine, "nu", "1 if its bias is affine (else none)")               \
-  X(i64, actuator_actadr, "nu", "its activation's address in act (-1: input is ctrl)")   \
-  X(i64, actuator_ctrllimited, "nu", "1 if its control is clamped")                      \
-  X(i64, actuator_forcelimited, "nu", "1 if its force is clamped")                       \
-  X(f64, surface_prm, "PRM_SIZE", "the free surface (surface.h)")                        \
-  X(f64, surface_grid, "surface_nrow, surface_ncol", "grid heights [m], world frame")    \
-  X(f64, elem_vert, "nvert, 9", "triangle vertices [m], body frame (deforming ground)")  \
-  X(f64, elem_reach, "nelem", "largest centroid-corner distance [m]")                    \
-  X(f64, elem_patch, "nelem, PATCH_SIZE", "corner offsets and normals, body frame")
+  X(f64, elem_pos, nelem * 3, "triangle centroids [m], body frame")                     \
+  X(f64, elem_normal, nelem * 3, "outward unit normals, body frame")                    \
+  X(f64, elem_area, nelem, "areas [m^2]")                                              \
+  X(i64, tgeom_geomid, ntgeom, "MuJoCo geom id of each tagged geom")                   \
+  X(i64, tgeom_tbody, ntgeom, "its tagged body (index into tbody_*)")                  \
+  X(i64, tgeom_elemadr, ntgeom, "first element")                                       \
+  X(i64, tgeom_elemnum, ntgeom, "number of elements")                                  \
+  X(f64, tgeom_rbound, ntgeom, "bounding-sphere radius [m] (0: never culled)")        \
+  X(i64, tbody_bodyid, ntbody, "MuJoCo body id of each tagged body")                   \
+  X(i64, tbody_rootid, ntbody, "its root body (cvel's reference point)")               \
+  X(i64, tbody_geomadr, ntbody, "first tagged geom")                                   \
+  X(i64, tbody_geomnum, ntbody, "number of tagged geoms")                              \
+  X(i64, tbody_treat, ntbody, "1 if the low-speed treatment may act on it")            \
+  X(f64, region, 2 * 3, "world box [m]: min corner, max corner")                        \
+  X(f64, coef, ncoef, "kernel coefficients (Material.kernel_coefficients)")            \
+  X(i64, tbody_mech, ntbody, "1 if it is a body in a mechanism")                       \
+  X(i64, tbody_dofmask, ntbody * nv, "1 where dof j moves tagged body k")               \
+  X(i64, actuator_affine, nu, "1: gain fixed/affine, bias none/affine, not actearly")  \
+  X(i64, actuator_gainaffine, nu, "1 if its gain is affine (else fixed)")              \
+  X(i64, actuator_biasaffine, nu, "1 if its bias is affine (else none)")               \
+  X(i64, actuator_actadr, nu, "its activation's address in act (-1: input is ctrl)")   \
+  X(i64, actuator_ctrllimited, nu, "1 if its control is clamped")                      \
+  X(i64, actuator_forcelimited, nu, "1 if its force is clamped")                       \
+  X(f64, surface_prm, kPrmSize, "the free surface (surface.h)")                        \
+  X(f64, surface_grid, surface_nrow * surface_ncol, "grid heights [m], world frame")    \
+  X(f64, elem_vert, nvert * 9, "triangle vertices [m], body frame (deforming ground)")  \
+  X(f64, elem_reach, nelem, "largest centroid-corner distance [m]")                    \
+  X(f64, elem_patch, nelem * kPatchSize, "corner offsets and normals, body frame")
 
 // The engine's state for one mjData: X(type, name, size, meaning); size is an expression in nbody,
 // nv, nu (mjModel), nelem, ng = ntgeom, nk = ntbody, nsoil (Tables), and soil_nrow, soil_ncol

@@ -24,11 +24,11 @@ WORK_FLOOR = 1e-4
 
 
 def models_dir() -> Path:
-    """The rig models: the repository's models/ folder (installed as ``mjrft_models``)."""
+    """The rig models: the repository's models/ folder (installed as ``mjrft.models``)."""
     try:
-        import mjrft_models
+        import mjrft.models
 
-        return Path(mjrft_models.__file__).parent
+        return Path(mjrft.models.__file__).parent
     except ImportError:  # a checkout that was never installed
         return Path(__file__).resolve().parents[1] / "models"
 

@@ -1,1 +1,1 @@
-"""MJCF rig models shipped with mjrft; installed as the data package ``mjrft_models``."""
+"""MJCF rig models shipped with mjrft; installed as the data package ``mjrft.models``."""

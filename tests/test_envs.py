@@ -91,7 +91,7 @@ def test_no_top_level_envs_package_is_installed(tmp_path):
     (wheel,) = tmp_path.glob("mjrft-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     top = {n.split("/")[0] for n in names}
-    assert {t for t in top if not t.endswith(".dist-info")} == {"mjrft", "mjrft_models"}
+    assert {t for t in top if not t.endswith(".dist-info")} == {"mjrft"}
     assert "mjrft/envs/__init__.py" in names and "mjrft/envs/hexapod_sand.py" in names
 
 

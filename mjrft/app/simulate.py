@@ -30,9 +30,9 @@ Controller = Callable[[float, mujoco.MjData], "np.ndarray | None"]
 
 def models_dir() -> Path:
     """The rig models shipped with mjrft (the repository's models/ folder)."""
-    import mjrft_models
+    import mjrft.models
 
-    return Path(mjrft_models.__file__).parent
+    return Path(mjrft.models.__file__).parent
 
 
 def resolve_model(name: str | os.PathLike) -> Path:

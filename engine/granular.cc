@@ -1,0 +1,385 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+
+#include "granular.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <type_traits>
+#include <string>
+#include <utility>
+
+#include <mujoco/mjplugin.h>
+
+#include "forward.h"
+
+namespace mjrft {
+namespace {
+
+// The custom numeric field "mjrft.granular:<name>" of m: its data and size, or nullptr.
+const f64* Numeric(const mjModel* m, const char* name, int* size) {
+  std::string full = std::string(kTablePrefix) + name;
+  for (int i = 0; i < m->nnumeric; i++) {
+    if (full == m->names + m->name_numericadr[i]) {
+      *size = m->numeric_size[i];
+      return m->numeric_data + m->numeric_adr[i];
+    }
+  }
+  *size = 0;
+  return nullptr;
+}
+
+std::string Missing(const char* what) {
+  return std::string(kPluginName) + ": the model has no " + kTablePrefix + what +
+         " table: load it with mjrft.load_model(path_or_xml), or add the tables to an MjSpec "
+         "with mjrft.add_granular(spec), before compiling";
+}
+
+// The instance's persistent arrays are laid out in this order in plugin_state.
+template <typename F>
+void ForEachPersistent(const Sizes& n, F&& f) {
+  const i64 nbody = n.nbody, nv = n.nv, nu = n.nu, nk = n.nk, ng = n.ng, nsoil = n.nsoil;
+  (void)nbody, (void)nv, (void)nu, (void)nk, (void)ng, (void)nsoil;
+#define MJRFT_X(type, name, size, doc) f(&State::name, static_cast<i64>(size));
+  MJRFT_STATE_PERSISTENT(MJRFT_X)
+#undef MJRFT_X
+}
+
+// Assigns a pointer member of State, whatever its element type.
+void SetPointer(State* s, f64* State::*member, void* p) { s->*member = static_cast<f64*>(p); }
+void SetPointer(State* s, i64* State::*member, void* p) { s->*member = static_cast<i64*>(p); }
+
+bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error);
+
+}  // namespace
+
+bool Instance::ReadSizes(const mjModel* m, Sizes* n, std::string* error) {
+  int size = 0;
+  const f64* format = Numeric(m, "format", &size);
+  if (!format) {
+    *error = Missing("format");
+    return false;
+  }
+  if (size != 1 || format[0] != kTableFormat) {
+    *error = std::string(kPluginName) + ": the model's tables have format " +
+             (size ? std::to_string(static_cast<int>(format[0])) : "?") + ", this engine reads " +
+             std::to_string(kTableFormat) + ": reload the model with this version of mjrft";
+    return false;
+  }
+  const f64* sizes = Numeric(m, "sizes", &size);
+  const f64* scalars = nullptr;
+  int nscalar = 0;
+  scalars = Numeric(m, "scalars", &nscalar);
+  if (!sizes || !scalars) {
+    *error = Missing(sizes ? "scalars" : "sizes");
+    return false;
+  }
+  Tables t{};
+  int i = 0;
+#define MJRFT_X(name) t.name = i < size ? static_cast<i64>(sizes[i]) : -1, i++;
+  MJRFT_TABLE_SIZES(MJRFT_X)
+#undef MJRFT_X
+  if (i != size) {
+    *error = std::string(kPluginName) + ": the sizes table has " + std::to_string(size) +
+             " entries, expected " + std::to_string(i);
+    return false;
+  }
+  bool soil = false;
+  int j = 0;
+#define MJRFT_X(type, name, doc) \
+  if (std::string(#name) == "soil" && j < nscalar) soil = scalars[j] != 0;  \
+  j++;
+  MJRFT_TABLE_SCALARS(MJRFT_X)
+#undef MJRFT_X
+  *n = {m->nbody, m->nv, m->nu, t.nelem, t.ntgeom, t.ntbody, t.nsoil,
+        soil ? t.surface_nrow : 1, soil ? t.surface_ncol : 1};
+  return true;
+}
+
+i64 Instance::StateSize(const Sizes& n) {
+  i64 total = 0;
+  ForEachPersistent(n, [&](auto, i64 size) { total += size; });
+  return total;
+}
+
+std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::string* error) {
+  auto out = std::unique_ptr<Instance>(new (std::nothrow) Instance());
+  if (!out) {
+    *error = std::string(kPluginName) + ": out of memory";
+    return nullptr;
+  }
+  out->instance_ = instance;
+  Sizes& n = out->sizes_;
+  if (!ReadSizes(m, &n, error)) return nullptr;
+  Tables& t = out->tables_;
+
+  // 1. sizes and scalars
+  int size = 0;
+  const f64* sizes = Numeric(m, "sizes", &size);
+  int i = 0;
+#define MJRFT_X(name) t.name = static_cast<i64>(sizes[i++]);
+  MJRFT_TABLE_SIZES(MJRFT_X)
+#undef MJRFT_X
+  const f64* scalars = Numeric(m, "scalars", &size);
+  i = 0;
+#define MJRFT_X(type, name, doc) t.name = static_cast<type>(scalars[i++]);
+  MJRFT_TABLE_SCALARS(MJRFT_X)
+#undef MJRFT_X
+  if (i != size) {
+    *error = std::string(kPluginName) + ": the scalars table has " + std::to_string(size) +
+             " entries, expected " + std::to_string(i);
+    return nullptr;
+  }
+
+  // 2. arrays: f64 tables are read in place from the model, i64 tables converted once
+  const i64 nelem = t.nelem, ntgeom = t.ntgeom, ntbody = t.ntbody, ncoef = t.ncoef;
+  const i64 surface_nrow = t.surface_nrow, surface_ncol = t.surface_ncol, nvert = t.nvert;
+  const i64 nv = m->nv, nu = m->nu;
+  (void)nelem, (void)ntgeom, (void)ntbody, (void)ncoef, (void)surface_nrow, (void)surface_ncol;
+  (void)nvert, (void)nv, (void)nu;
+  i64 nint = 0;
+#define MJRFT_X(type, name, count, doc) \
+  if (std::is_same<type, i64>::value) nint += static_cast<i64>(count);
+  MJRFT_TABLE_ARRAYS(MJRFT_X)
+#undef MJRFT_X
+  out->ints_.assign(nint, 0);
+  i64 next = 0;
+  std::string bad;
+  auto place = [&](const char* name, i64 count, const f64** f, const i64** k) {
+    int have = 0;
+    const f64* data = Numeric(m, name, &have);
+    if (!data && count > 0) {
+      bad = Missing(name);
+      return;
+    }
+    if (have != count && bad.empty()) {
+      bad = std::string(kPluginName) + ": table " + kTablePrefix + name + " has " +
+            std::to_string(have) + " values, expected " + std::to_string(count) +
+            " (was the model edited after its tables were written? reload it)";
+      return;
+    }
+    if (f) *f = data;
+    if (k) {
+      i64* dst = out->ints_.data() + next;
+      for (i64 c = 0; c < count; c++) dst[c] = static_cast<i64>(data[c]);
+      *k = dst;
+      next += count;
+    }
+  };
+#define MJRFT_X(type, name, count, doc)                                                       \
+  if constexpr (std::is_same<type, i64>::value) {                                             \
+    place(#name, static_cast<i64>(count), nullptr, reinterpret_cast<const i64**>(&t.name));   \
+  } else {                                                                                    \
+    place(#name, static_cast<i64>(count), reinterpret_cast<const f64**>(&t.name), nullptr);   \
+  }
+  MJRFT_TABLE_ARRAYS(MJRFT_X)
+#undef MJRFT_X
+  if (!bad.empty()) {
+    *error = bad;
+    return nullptr;
+  }
+
+  // 3. the config the state was sized by agrees, references into the model are in range
+  Sizes config;
+  if (!ConfigSizes(m, instance, &config, error)) return nullptr;
+  if (config.nk != t.ntbody || config.ng != t.ntgeom || config.nsoil != t.nsoil) {
+    *error = std::string(kPluginName) + ": config (ntbody, ntgeom, nsoil) = (" +
+             std::to_string(config.nk) + ", " + std::to_string(config.ng) + ", " +
+             std::to_string(config.nsoil) + ") disagrees with the tables (" +
+             std::to_string(t.ntbody) + ", " + std::to_string(t.ntgeom) + ", " +
+             std::to_string(t.nsoil) + "): reload the model with mjrft.load_model";
+    return nullptr;
+  }
+  for (i64 g = 0; g < t.ntgeom; g++) {
+    if (t.tgeom_geomid[g] < 0 || t.tgeom_geomid[g] >= m->ngeom) {
+      *error = std::string(kPluginName) + ": tagged geom " + std::to_string(g) + " has id " +
+               std::to_string(t.tgeom_geomid[g]) + ", the model has " +
+               std::to_string(m->ngeom) + " geoms: reload the model";
+      return nullptr;
+    }
+  }
+  for (i64 k = 0; k < t.ntbody; k++) {
+    if (t.tbody_bodyid[k] <= 0 || t.tbody_bodyid[k] >= m->nbody) {
+      *error = std::string(kPluginName) + ": tagged body " + std::to_string(k) + " has id " +
+               std::to_string(t.tbody_bodyid[k]) + ", the model has " +
+               std::to_string(m->nbody) + " bodies: reload the model";
+      return nullptr;
+    }
+  }
+
+  // 4. work arrays
+  const i64 nbody = n.nbody, nk = n.nk, ng = n.ng, soil_nrow = n.soil_nrow;
+  const i64 soil_ncol = n.soil_ncol;
+  (void)nbody, (void)nk, (void)ng, (void)soil_nrow, (void)soil_ncol;
+  i64 nf = 0, ni = 0;
+#define MJRFT_X(type, name, count, doc) \
+  (std::is_same<type, i64>::value ? ni : nf) += static_cast<i64>(count);
+  MJRFT_STATE_WORK(MJRFT_X)
+#undef MJRFT_X
+  out->work_.assign(nf, 0.0);
+  out->iwork_.assign(ni, 0);
+  nf = ni = 0;
+#define MJRFT_X(type, name, count, doc)                                       \
+  if constexpr (std::is_same<type, i64>::value) {                             \
+    SetPointer(&out->work_state_, &State::name, out->iwork_.data() + ni);     \
+    ni += static_cast<i64>(count);                                            \
+  } else {                                                                    \
+    SetPointer(&out->work_state_, &State::name, out->work_.data() + nf);      \
+    nf += static_cast<i64>(count);                                            \
+  }
+  MJRFT_STATE_WORK(MJRFT_X)
+#undef MJRFT_X
+  out->Reset(nullptr);
+  return out;
+}
+
+State Instance::Bind(const mjModel* m, mjData* d) const {
+  State s = work_state_;
+  f64* p = d->plugin_state + m->plugin_stateadr[instance_];
+  ForEachPersistent(sizes_, [&](auto member, i64 size) {
+    SetPointer(&s, member, p);
+    p += size;
+  });
+  return s;
+}
+
+void Instance::Reset(f64* plugin_state) {
+  // persistent: zero, and every geom may hold element forces (they are zeroed when culled)
+  if (plugin_state) {
+    std::memset(plugin_state, 0, sizeof(f64) * StateSize(sizes_));
+    i64 offset = 0;
+    ForEachPersistent(sizes_, [&](auto member, i64 size) {
+      if constexpr (std::is_same<decltype(member), i64* State::*>::value) {
+        if (member == &State::geom_dirty) {
+          i64* dirty = reinterpret_cast<i64*>(plugin_state + offset);
+          for (i64 g = 0; g < size; g++) dirty[g] = 1;
+        }
+      }
+      offset += size;
+    });
+  }
+  // work: the caches hold nothing, the ground's work grids are empty
+  State& w = work_state_;
+  const i64 nv = sizes_.nv, nk = sizes_.nk, cells = sizes_.soil_nrow * sizes_.soil_ncol;
+  for (i64 i = 0; i < 1 + nk + 6 * nv + 6 * nk; i++) w.mech_cfg[i] = -1.0;
+  for (i64 i = 0; i < 1 + 6 * nk; i++) w.mech_hkey[i] = -2;
+  for (i64 i = 0; i < cells; i++) {
+    w.soil_floor[i] = INFINITY;
+    w.soil_owner[i] = -1;
+  }
+}
+
+namespace {
+
+Instance* Get(const mjData* d, int instance) {
+  return reinterpret_cast<Instance*>(d->plugin_data[instance]);
+}
+
+// The sizes that fix the state's layout, from the instance's config: MuJoCo asks nstate while
+// compiling, before the model's custom numeric fields hold their data, so the loader writes
+// these three sizes into the config too (init checks them against the tables).
+bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error) {
+  i64 v[3];
+  const char* keys[3] = {"ntbody", "ntgeom", "nsoil"};
+  for (int i = 0; i < 3; i++) {
+    const char* text = mj_getPluginConfig(m, instance, keys[i]);
+    char* end = nullptr;
+    v[i] = text ? std::strtoll(text, &end, 10) : -1;
+    if (!text || end == text || *end != '\0' || v[i] < 0) {
+      *error = std::string(kPluginName) + ": config '" + keys[i] + "' must be a count, got '" +
+               (text ? text : "") + "': load the model with mjrft.load_model(path_or_xml)";
+      return false;
+    }
+  }
+  *n = {m->nbody, m->nv, m->nu, 0, v[1], v[0], v[2], 1, 1};
+  return true;
+}
+
+int NState(const mjModel* m, int instance) {
+  (void)instance;
+  Sizes n;
+  std::string error;
+  if (!ConfigSizes(m, instance, &n, &error)) return 0;  // init reports the reason
+  return static_cast<int>(Instance::StateSize(n));
+}
+
+int Init(const mjModel* m, mjData* d, int instance) {
+  std::string error;
+  std::unique_ptr<Instance> in = Instance::Create(m, instance, &error);
+  if (!in) {
+    mju_warning("%s", error.c_str());
+    return -1;
+  }
+  in->Reset(d->plugin_state + m->plugin_stateadr[instance]);
+  d->plugin_data[instance] = reinterpret_cast<uintptr_t>(in.release());
+  return 0;
+}
+
+void Destroy(mjData* d, int instance) {
+  delete Get(d, instance);
+  d->plugin_data[instance] = 0;
+}
+
+void Reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {
+  (void)m, (void)instance;
+  reinterpret_cast<Instance*>(plugin_data)->Reset(plugin_state);
+}
+
+// Raises the error of a failed pass as MuJoCo's error (a mujoco.FatalError in Python) naming
+// the body and the time, in the words of the Python field's errors.
+void RaiseStatus(const mjModel* m, const mjData* d, const Tables& t, i64 status) {
+  f64 dt = m->opt.timestep;
+  long long step = dt > 0 && std::isfinite(d->time) ? std::llrint(std::nearbyint(d->time / dt)) : -1;
+  char msg[600];
+  if (status <= kBelowGround) {
+    i64 b = t.tbody_bodyid[kBelowGround - status];
+    std::snprintf(msg, sizeof(msg),
+                  "body '%s' reaches below the bottom of the deforming ground (mjrft:region "
+                  "zmin = %g m) at time %.6g s (step %lld): the ground is excavated from above, "
+                  "so an intruder must enter it from above its surface; lower the region's zmin "
+                  "or start the body above the ground",
+                  m->names + m->name_bodyadr[b], t.region[2], d->time, step);
+  } else {
+    i64 b = t.tbody_bodyid[-1 - status];
+    std::snprintf(msg, sizeof(msg),
+                  "body '%s' has a non-finite position or velocity at time %.6g s (step %lld); "
+                  "the granular field refuses to feed NaN forward (check the timestep and "
+                  "actuators)",
+                  m->names + m->name_bodyadr[b], d->time, step);
+  }
+  mju_error("%s", msg);
+}
+
+void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
+  (void)capability_bit;
+  Instance* in = Get(d, instance);
+  if (!in) {  // init failed and said why; MuJoCo's compiler steps such a model anyway
+    mju_error("%s: the instance was not initialised (see the warning above)", kPluginName);
+    return;
+  }
+  State s = in->Bind(m, d);
+  i64 status = Forward(m, d, in->tables(), s, kInstalled);
+  if (status != kOk) RaiseStatus(m, d, in->tables(), status);  // no C++ object is live here
+}
+
+}  // namespace
+
+void RegisterGranular() {
+  mjpPlugin plugin;
+  mjp_defaultPlugin(&plugin);
+  plugin.name = kPluginName;
+  plugin.capabilityflags = mjPLUGIN_PASSIVE;
+  static const char* attributes[] = {"ntbody", "ntgeom", "nsoil"};
+  plugin.nattribute = sizeof(attributes) / sizeof(attributes[0]);
+  plugin.attributes = attributes;
+  plugin.nstate = NState;
+  plugin.init = Init;
+  plugin.destroy = Destroy;
+  plugin.reset = Reset;
+  plugin.compute = Compute;
+  mjp_registerPlugin(&plugin);
+}
+
+}  // namespace mjrft
