@@ -68,6 +68,13 @@ MJRFT_API void* mjrft_state_array(const mjModel* m, mjData* d, int instance, con
   return nullptr;
 }
 
+// The number of elements of state array `name` of d's instance (fields.h), or -1.
+MJRFT_API long long mjrft_state_size(const mjModel* m, mjData* d, int instance, const char* name) {
+  (void)m;
+  auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);
+  return in->ArraySize(name);
+}
+
 // The address of table `name` of d's instance, or null.
 MJRFT_API const void* mjrft_table(mjData* d, int instance, const char* name) {
   auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);

@@ -154,7 +154,8 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
       bad = Missing(name);
       return;
     }
-    if (have != count && bad.empty()) {
+    // MuJoCo's numeric fields hold at least one value: an empty table is stored as one 0
+    if (have != count && !(count == 0 && have == 1) && bad.empty()) {
       bad = std::string(kPluginName) + ": table " + kTablePrefix + name + " has " +
             std::to_string(have) + " values, expected " + std::to_string(count) +
             " (was the model edited after its tables were written? reload it)";
@@ -233,6 +234,19 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
 #undef MJRFT_X
   out->Reset(nullptr);
   return out;
+}
+
+i64 Instance::ArraySize(const char* name) const {
+  const Sizes& n = sizes_;
+  const i64 nbody = n.nbody, nv = n.nv, nu = n.nu, nelem = n.nelem, ng = n.ng, nk = n.nk;
+  const i64 nsoil = n.nsoil, soil_nrow = n.soil_nrow, soil_ncol = n.soil_ncol;
+  (void)nbody, (void)nv, (void)nu, (void)nelem, (void)ng, (void)nk, (void)nsoil;
+  (void)soil_nrow, (void)soil_ncol;
+#define MJRFT_X(type, field, size, doc) \
+  if (std::strcmp(name, #field) == 0) return static_cast<i64>(size);
+  MJRFT_STATE_ARRAYS(MJRFT_X)
+#undef MJRFT_X
+  return -1;
 }
 
 State Instance::Bind(const mjModel* m, mjData* d) const {

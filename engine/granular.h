@@ -42,6 +42,8 @@ class Instance {
   void Reset(f64* plugin_state);
 
   const Tables& tables() const { return tables_; }
+  // Number of elements of state array `name` (fields.h), or -1 if there is none.
+  i64 ArraySize(const char* name) const;
   int instance() const { return instance_; }
 
   // Number of mjtNum of the persistent state of an instance of these sizes.

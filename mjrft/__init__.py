@@ -34,7 +34,9 @@ __all__ = [
     "FourierCoefficients",
     "GranularField",
     "Material",
+    "SceneOptions",
     "__version__",
+    "add_granular",
     "element_forces",
     "load_model",
 ]
@@ -45,8 +47,12 @@ def __getattr__(name: str) -> Any:
         from mjrft.field.granular_field import GranularField
 
         return GranularField
-    if name == "load_model":
-        from mjrft.field.scene import load_model
+    if name in ("load_model", "add_granular"):
+        from mjrft.field import plugin
 
-        return load_model
+        return getattr(plugin, name)
+    if name == "SceneOptions":
+        from mjrft.field.options import SceneOptions
+
+        return SceneOptions
     raise AttributeError(f"module 'mjrft' has no attribute {name!r}")

@@ -1,15 +1,12 @@
-"""The granular force field: RFT wrenches on a compiled MjModel's intruding bodies, every step.
+"""The granular force field of a model that carries the engine plugin: what it computes, per MjData.
 
-``GranularField(model)`` reads the scene from the MJCF (``mjrft.field.scene``), meshes the tagged
-geoms once, and maps any MjData of that model to one wrench per body, computed from that data's
-current kinematics (``xpos``, ``xmat``, ``cvel``, ``subtree_com``: no lag, no finite
-differences). Two ways to apply it, both running the one compiled pass (``mjrft.field.passive``):
-
-* explicit: ``mj_forward``; ``d.xfrc_applied[:] = user + field.wrench(d, user_xfrc=user)``;
-  ``mj_step``: the wrench is held over the step (all RK4 stages see the same force);
-* installed: ``with field.installed(): mj_step(...)``: in every forward pass the intruding
-  bodies' rows of ``xfrc_applied`` are set to the user's part plus that pass's RFT wrench
-  (``mjrft.field.ownership``), with RK4's later stages following ``mjrft.field.rk4``.
+The forces themselves are computed inside MuJoCo's step by the C++ engine plugin
+``mjrft.granular`` (``mjrft.field.plugin``; a model gets it from ``mjrft.load_model``): in every
+forward pass the intruding bodies' rows of ``xfrc_applied`` are set to the user's part plus that
+pass's RFT wrench, with RK4's later stages following the engine's stage rule. ``GranularField``
+is the Python face of one such model: its scene and elements, and for any of its MjData the
+engine's state (``wrench_of``, ``element_states``, ``soil``, ``stats_of``), the wrench of a
+state without stepping (``wrench``), and the user's part of ``xfrc_applied`` (``user_xfrc``).
 
 Why ``xfrc_applied`` and not ``qfrc_passive``: MuJoCo's force/torque sensors (load cells) see
 external body forces only through ``cfrc_ext``, which is built from ``xfrc_applied`` and contacts.
@@ -18,29 +15,32 @@ A wrench added to ``qfrc_passive`` moves the bodies but is invisible to every lo
 
 from __future__ import annotations
 
-import warnings
+import contextlib
+import ctypes
+import weakref
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
-from mjrft.core import kernel, surface
+from mjrft.core import surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.surface import Surface
-from mjrft.field import guard, lowspeed, ownership, passive, python_material
-from mjrft.field.model import (
-    BodyElements,
-    body_elements,
-    build_tables,
-    free_rigid,
-    mechanism_body,
-)
-from mjrft.field.scene import Scene, SceneError, scene_from_model
-from mjrft.field.signals import HeldSignals
+from mjrft.field import lowspeed, plugin
+from mjrft.field.model import BodyElements
+from mjrft.field.options import SceneOptions
+from mjrft.field.scene import Scene, SceneError
 from mjrft.field.soil_view import Soil
-from mjrft.field.state import DataState, States, soil_block
-from mjrft.field.tables import STATS
+
+#: Work counters of the engine, per MjData (``stats_of``): passes evaluated, triangles evaluated
+#: and acting, body-passes the treatment stuck, slipped, moved by the implicit step.
+STATS = ("calls", "evaluated", "acting", "stuck", "slipping", "implicit")
+#: Modes of the engine's pass (engine/forward.h).
+_EXPLICIT, _QUERY = 1, 3
+#: Status of a pass (engine/forward.h): OK, or a failure code naming a tagged body.
+_OK, _BELOW_GROUND = 0, -1_000_000
 
 
 @dataclass(frozen=True)
@@ -67,29 +67,21 @@ class ElementState:
 
 
 class GranularField:
-    """RFT force field bound to one compiled MjModel.
+    """The RFT field of a compiled MjModel that carries the ``mjrft.granular`` plugin.
 
     Args:
-      model: compiled model whose ``<custom>`` describes the scene (``mjrft.field.scene``).
-      material: overrides the MJCF material if given: a ``Material`` or a preset's name.
-      n_triangles: overrides the triangle count of every primitive geom (MJCF ``prm`` and
-        ``mjrft:triangles``): fewer is faster and less accurate. Mesh geoms keep their own.
-      tolerance: instead of n_triangles, the relative RMS force error wanted per primitive geom
-        (e.g. 0.01); the count comes from ``mjrft.geometry.triangles_for_tolerance``.
-      low_speed: "stick" (default), "free" or "off": the low-speed stick/slip treatment of free
-        bodies (``mjrft.field.lowspeed``) and of bodies in mechanisms (``mjrft.field.mechanism``),
-        of free bodies only, or none; overrides MJCF ``mjrft:low_speed``.
-      stick_reach: the treatment's reach (default ``lowspeed.DEFAULT_REACH``); overrides MJCF
-        ``mjrft:stick_reach``.
-      deform_cell [m], repose [deg], deform_every [steps]: the deforming ground (docs/terrain.md);
-        override MJCF ``mjrft:deform_cell`` (0: off), ``mjrft:repose``, ``mjrft:deform_every``.
-      dynamic: the dynamic RFT term (docs/models.md), rho_c [kg/m^3] or (rho_c, lambda);
-        overrides MJCF ``mjrft:dynamic`` (0: off).
+      model: a model from ``mjrft.load_model`` (or an MjSpec given ``mjrft.add_granular``).
+      options, overrides: the SceneOptions the model was loaded with, when it was loaded outside
+        this process (an MJB file, say); they are checked against the model's tables. By default
+        those ``load_model`` used.
     Raises:
-      mjrft.field.SceneError (a ValueError) naming the geom or field at fault.
+      mjrft.field.plugin.EngineError if the model has no plugin instance (with how to add one);
+      SceneError (a ValueError) naming the geom or field at fault, or options that do not
+      reproduce the model's tables.
 
-    The field's per-pass state belongs to each MjData (``mjrft.field.state``): several MjData of
-    one field may be stepped at once from several threads, each exactly as if alone.
+    The engine's state belongs to each MjData (``mjData.plugin_state``): several MjData of one
+    model may be stepped at once from several threads, each exactly as if alone, and
+    ``mj_copyData``, ``mj_resetData`` and ``mj_getState`` carry it.
     """
 
     def __init__(
@@ -97,73 +89,29 @@ class GranularField:
         model: mujoco.MjModel,
         material: Material | str | None = None,
         *,
-        n_triangles: int | None = None,
-        tolerance: float | None = None,
-        low_speed: str | None = None,
-        stick_reach: float | None = None,
-        deform_cell: float | None = None,
-        repose: float | None = None,
-        deform_every: int | None = None,
-        dynamic: float | tuple[float, float] | None = None,
+        options: SceneOptions | None = None,
+        **overrides,
     ) -> None:
         self.model = model
-        self.scene: Scene = scene_from_model(
-            model, material, n_triangles=n_triangles, tolerance=tolerance,
-            low_speed=low_speed, stick_reach=stick_reach, deform_cell=deform_cell, repose=repose,
-            deform_every=deform_every, dynamic=dynamic,
-        )  # fmt: skip
+        self._lib = plugin.library()
+        self._instance = plugin.instance(model)
+        given = SceneOptions.of(options, material=material, **overrides)
+        chosen = given if given.given() else plugin.options_of(model)
+        setup = plugin.setup(model, chosen)
+        _check_tables(model, setup.tables, given.given())
+        self.scene: Scene = setup.scene
         #: Tagged bodies (id order): their elements in the body frame.
-        self.bodies: tuple[BodyElements, ...]
+        self.bodies: tuple[BodyElements, ...] = setup.bodies
         #: Tagged geom id -> its ElementSet in the body frame.
-        self.geom_elements: dict[int, ElementSet]
-        self.bodies, self.geom_elements = body_elements(model, self.scene)
-        self.body_ids = np.array([be.body for be in self.bodies], dtype=np.int64)
-        tagged = set(self.body_ids.tolist())
-        #: Per body of ``body_ids``: True if the low-speed treatment can act on it (a free rigid
-        #: body, ``mjrft.field.model.free_rigid``).
-        self.stick_eligible = np.array([free_rigid(model, int(b), tagged) for b in self.body_ids])
-        m = self.scene.material
-        self._native = m.compiled
-        key = 0 if self._native else self._register_python_material()
-        #: Per body of ``body_ids``: True if the mechanism treatment acts on it (jointed, not a
-        #: free rigid body; ``low_speed`` "stick").
-        self.mechanism_eligible = (
-            np.array([mechanism_body(model, int(b)) for b in self.body_ids], dtype=bool)
-            & ~self.stick_eligible
-            & self.scene.low_speed.mechanisms
-        )
-        self._tables = build_tables(
-            model, self.scene, self.bodies, self.stick_eligible, key, self.mechanism_eligible
-        )
-        #: (nbody, 6) wrench of the most recent installed pass of any of the model's MjData
-        #: (updated in place); per MjData see ``wrench_of``.
-        self.last_wrench = np.zeros((model.nbody, 6))
-        #: Per body of ``body_ids``: the treatment's decision in the most recent pass
-        #: (``lowspeed.PURE``, ``STICK``, ``SLIP`` or ``IMPLICIT``).
-        self.last_decision = np.zeros(len(self.bodies), dtype=np.int64)
-        self._states = States(self._tables, (self.last_wrench, self.last_decision))
-        self._states.on_forget = self._unregister
-
-    def _register_python_material(self) -> int:
-        if self.scene.surface.kind != surface.FLAT:
-            raise SceneError(
-                "a material given by Python callables acts under the flat surface only "
-                "(mjrft:surface_z); this scene's surface is a tilted plane or a height field"
-            )
-        quad = [be.quadrature for be in self.bodies]
-        region = self.scene.region
-        tables = (
-            np.concatenate([be.centroids for be in self.bodies]),
-            np.concatenate([be.normals for be in self.bodies]),
-            np.concatenate([be.areas for be in self.bodies]),
-            np.concatenate([q[0] for q in quad]),
-            np.concatenate([q[1] for q in quad]),
-            np.zeros(18), 0.0, 0.0,  # the kernel's coefficients: unused, the callables act
-            self.scene.surface.prm, self.scene.surface.grid, region is not None,
-            np.zeros((2, 3)) if region is None else np.ascontiguousarray(region, dtype=float),
-            np.zeros(1),
-        )  # fmt: skip
-        return python_material.register(self, self.scene.material, tables)
+        self.geom_elements: dict[int, ElementSet] = setup.geom_elements
+        self.body_ids = setup.body_ids
+        #: Per body of ``body_ids``: True if the free-body treatment can act on it.
+        self.stick_eligible = setup.stick_eligible
+        #: Per body of ``body_ids``: True if the mechanism treatment acts on it.
+        self.mechanism_eligible = setup.mechanism_eligible
+        self._tables = setup.tables
+        self._seen: weakref.WeakSet = weakref.WeakSet()
+        self._last: weakref.ref | None = None
 
     # ------------------------------------------------------------------ description
     @property
@@ -187,16 +135,6 @@ class GranularField:
         """True if the ground deforms and remembers (``mjrft:deform_cell``; ``soil``)."""
         return self.scene.surface.kind == surface.SOIL
 
-    def soil(self, data: mujoco.MjData) -> Soil:
-        """The deforming ground of one MjData (read and write; ``mjrft.field.soil_view``)."""
-        if not self.deforms:
-            raise ValueError(
-                "this field's ground does not deform: add <numeric name='mjrft:deform_cell' "
-                "data='0.002'/> (and mjrft:region) or pass deform_cell= to GranularField"
-            )
-        block = soil_block(data, self._tables.arrays.nsoil)
-        return Soil(self.scene.surface, block, self._state(data).arrays.soil_stats)
-
     @property
     def region(self) -> np.ndarray | None:
         """(2, 3) world box of the medium [m] (min corner, max corner), or None."""
@@ -211,16 +149,6 @@ class GranularField:
     def n_elements(self) -> int:
         """Total number of surface triangles over all intruding geoms."""
         return int(sum(len(be.areas) for be in self.bodies))
-
-    @property
-    def stats(self) -> dict[str, int]:
-        """Work counters since construction, over all MjData: ``calls`` (evaluations of the
-        field), ``evaluated`` (triangles handed to the kernel: those of geoms not culled by their
-        bounding sphere), ``acting`` (triangles that felt a force: submerged and leading), and of
-        the low-speed treatment ``stuck``, ``slipping`` and ``implicit`` (body-passes held at
-        rest, given the force of their free direction of motion, or moved with the linearly
-        implicit force)."""
-        return dict(zip(STATS, (int(x) for x in self._states.stats()), strict=True))
 
     def body_element_set(self, body: int) -> ElementSet:
         """All tagged elements of a body as one ElementSet in the body frame."""
@@ -238,26 +166,113 @@ class GranularField:
             corner_normals=be.corner_normals,
         )
 
-    # ------------------------------------------------------------------ per-MjData state
-    def _state(self, data: mujoco.MjData) -> DataState:
-        """The field's state for an MjData (``mjrft.field.state``), made on first sight."""
-        return self._states.of(data)
+    # ------------------------------------------------------------------ the engine's state
+    def state_array(self, data: mujoco.MjData, name: str) -> np.ndarray:
+        """A view of the engine's array `name` for data (engine/fields.h): the persistent ones
+        are views into ``data.plugin_state`` (they keep data alive), the work arrays copies."""
+        self._check_data(data)
+        lib, m, d = self._lib, ctypes.c_void_p(self.model._address), ctypes.c_void_p(data._address)
+        address = lib.mjrft_state_array(m, d, self._instance, name.encode())
+        size = lib.mjrft_state_size(m, d, self._instance, name.encode())
+        if not address:
+            raise KeyError(f"the engine has no state array {name!r}")
+        kind = dict((n, t) for t, n in plugin.layout().state)[name]
+        dtype = np.int64 if kind == "i64" else np.float64
+        base = data.plugin_state
+        start = (address - base.ctypes.data) // 8
+        if 0 <= start and start + size <= base.shape[0]:
+            view = base[start : start + size]
+            return view.view(np.int64) if dtype is np.int64 else view
+        raw = (ctypes.c_double * size).from_address(address)
+        return np.frombuffer(raw, dtype=dtype, count=size).copy()
 
-    def _counted_state(self) -> DataState:
-        """A state without MjData (a batch thread's), whose counters the field's stats include."""
-        return self._states.counted()
+    def _check_data(self, data: mujoco.MjData) -> None:
+        m = self.model
+        if (data.plugin_state.shape[0], data.xpos.shape[0], data.qpos.shape[0]) != (
+            m.npluginstate, m.nbody, m.nq
+        ):
+            raise ValueError(
+                "this MjData does not belong to the field's model (its sizes differ): make it "
+                "with mujoco.MjData(field.model)"
+            )
+        self._seen.add(data)
+        self._last = weakref.ref(data)
 
-    @staticmethod
-    def _unregister(key: int, st: DataState) -> None:
-        if st.registered:
-            guard.unregister_data(key)
-            st.registered = False
+    def wrench_of(self, data: mujoco.MjData) -> np.ndarray:
+        """(nbody, 6) RFT wrench of data's most recent pass (inside a step or ``wrench``), world
+        frame, torque about each CoM; a view, updated in place by that MjData's passes."""
+        return self.state_array(data, "wrench").reshape(self.model.nbody, 6)
+
+    def decision_of(self, data: mujoco.MjData) -> np.ndarray:
+        """(ntbody,) the low-speed treatment's decision per body of ``body_ids`` in data's most
+        recent pass (``lowspeed.PURE``, ``STICK``, ``SLIP`` or ``IMPLICIT``); a view."""
+        return self.state_array(data, "decision")
+
+    @property
+    def last_wrench(self) -> np.ndarray:
+        """(nbody, 6) ``wrench_of`` the MjData this field was most recently asked about."""
+        data = self._last() if self._last is not None else None
+        return np.zeros((self.model.nbody, 6)) if data is None else self.wrench_of(data)
+
+    @property
+    def last_decision(self) -> np.ndarray:
+        """``decision_of`` the MjData this field was most recently asked about."""
+        data = self._last() if self._last is not None else None
+        if data is None:
+            return np.zeros(len(self.bodies), dtype=np.int64)
+        return self.decision_of(data)
+
+    def stats_of(self, data: mujoco.MjData) -> dict[str, int]:
+        """Work counters of data's passes since it was made or reset: ``calls`` (evaluations of
+        the field), ``evaluated`` (triangles handed to the kernel: those of geoms not culled by
+        their bounding sphere), ``acting`` (triangles that felt a force), and of the low-speed
+        treatment ``stuck``, ``slipping`` and ``implicit`` body-passes."""
+        values = self.state_array(data, "stats")
+        return dict(zip(STATS, (int(x) for x in values), strict=True))
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """``stats_of`` summed over the MjData this field was asked about that still exist."""
+        total = dict.fromkeys(STATS, 0)
+        for data in list(self._seen):
+            for k, v in self.stats_of(data).items():
+                total[k] += v
+        return total
+
+    def soil(self, data: mujoco.MjData) -> Soil:
+        """The deforming ground of one MjData (read and write; ``mjrft.field.soil_view``)."""
+        if not self.deforms:
+            raise ValueError(
+                "this field's ground does not deform: add <numeric name='mjrft:deform_cell' "
+                "data='0.002'/> (and mjrft:region) or load the model with deform_cell="
+            )
+        return Soil(
+            self.scene.surface, self.state_array(data, "soil"),
+            self.state_array(data, "soil_stats"),
+        )  # fmt: skip
+
+    def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
+        """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""
+        out = data.xfrc_applied.copy()
+        rows = self.body_ids
+        written = self.state_array(data, "written").reshape(-1, 6)[rows]
+        user = self.state_array(data, "user").reshape(-1, 6)[rows]
+        current = out[rows]
+        out[rows] = np.where(current == written, user, current)
+        return out
+
+    # ------------------------------------------------------------------ passes from Python
+    def _run(self, data: mujoco.MjData, mode: int) -> None:
+        m, d = ctypes.c_void_p(self.model._address), ctypes.c_void_p(data._address)
+        status = self._lib.mjrft_forward(m, d, self._instance, mode)
+        if status != _OK:
+            self._raise_bad(data, int(status))
 
     def _raise_bad(self, data: mujoco.MjData, status: int) -> None:
         dt = float(self.model.opt.timestep)
         step = round(data.time / dt) if dt > 0 and np.isfinite(data.time) else -1
-        if status <= passive.BELOW_GROUND:
-            be = self.bodies[passive.BELOW_GROUND - status]
+        if status <= _BELOW_GROUND:
+            be = self.bodies[_BELOW_GROUND - status]
             raise ValueError(
                 f"body '{be.name}' reaches below the bottom of the deforming ground (mjrft:region "
                 f"zmin = {self.scene.region[0, 2]:g} m) at time {data.time:.6g} s (step {step}): "
@@ -271,12 +286,6 @@ class GranularField:
             "and actuators)"
         )
 
-    def _run(self, st: DataState, data: mujoco.MjData, mode: int) -> None:
-        status = passive.step(self._tables.address, st.address, mode)
-        if status != passive.OK:
-            self._raise_bad(data, status)
-
-    # ------------------------------------------------------------------ queries
     def wrench(
         self,
         data: mujoco.MjData,
@@ -284,33 +293,30 @@ class GranularField:
         *,
         user_xfrc: np.ndarray | None = None,
     ) -> np.ndarray:
-        """RFT wrench on every body, ``xfrc_applied`` layout, low-speed treatment included.
+        """RFT wrench on every body at data's current state, ``xfrc_applied`` layout, low-speed
+        treatment included, without stepping or writing ``xfrc_applied``.
 
         Args:
           data: MjData of this model with current kinematics (``mj_forward`` outside a step).
           out: optional (nbody, 6) array to fill.
-          user_xfrc: (nbody, 6) the other applied wrenches you will add to ``xfrc_applied``
-            (world force [N], torque about the CoM [N m]); the treatment balances them when it
-            holds a body at rest. Default: none.
+          user_xfrc: (nbody, 6) the other applied wrenches (world force [N], torque about the
+            CoM [N m]); the treatment balances them when it holds a body at rest. Default: none.
         Returns:
           (nbody, 6): world-frame force [N] then torque [N m] about each body's CoM (xipos);
           zero rows for bodies without intruding geoms or out of the medium.
         """
-        st = self._state(data)
-        user = st.arrays.user_in
-        user[:] = 0.0 if user_xfrc is None else user_xfrc
-        self._run(st, data, passive.EXPLICIT)
+        self._check_data(data)
+        m, d = ctypes.c_void_p(self.model._address), ctypes.c_void_p(data._address)
+        address = self._lib.mjrft_state_array(m, d, self._instance, b"user_in")
+        user = np.ctypeslib.as_array((ctypes.c_double * (6 * self.model.nbody)).from_address(address))
+        user[:] = 0.0 if user_xfrc is None else np.asarray(user_xfrc, dtype=float).ravel()
+        self._run(data, _EXPLICIT)
         if out is None:
             out = np.zeros((self.model.nbody, 6))
         else:
             out[:] = 0.0
-        out[self.body_ids] = st.arrays.wrench[self.body_ids]
+        out[self.body_ids] = self.wrench_of(data)[self.body_ids]
         return out
-
-    def wrench_of(self, data: mujoco.MjData) -> np.ndarray:
-        """(nbody, 6) RFT wrench of data's most recent pass (installed or ``wrench``), world
-        frame, torque about each CoM; a view, updated in place by that MjData's passes."""
-        return self._state(data).arrays.wrench
 
     def element_states(self, data: mujoco.MjData) -> list[ElementState]:
         """Per-element world-frame state and RFT force of every body with geoms in the medium.
@@ -318,25 +324,35 @@ class GranularField:
         Uses data's current kinematics (call ``mj_forward`` first outside a step). Forces are the
         pure model's (the low-speed treatment acts on whole bodies: see ``wrench``); elements of
         geoms culled by their bounding sphere and elements outside the region are left out.
+        data's own state is left as it is (the pass runs on a copy).
         """
-        st = DataState(self._tables, (self.last_wrench, self.last_decision), data, ring=1)
-        self._run(st, data, passive.QUERY)
-        fa, out, offset = st.arrays, [], 0
+        self._check_data(data)
+        probe = mujoco.MjData(self.model)
+        mujoco.mj_copyData(probe, self.model, data)
+        self._run(probe, _QUERY)
+        elem_force = self.state_array(probe, "elem_force").reshape(-1, 3)
+        cull = self.state_array(probe, "cull")
+        soil = self.state_array(probe, "soil")
+        out, offset = [], 0
         for k, be in enumerate(self.bodies):
             first, n = offset, len(be.areas)
             offset += n
-            g0 = int(self._tables.arrays.tbody_geomadr[k])
+            g0 = int(self._tables["tbody_geomadr"][k])
             blocks = [
                 np.arange(be.segments[i], be.segments[i + 1])
                 for i in range(len(be.geoms))
-                if not fa.cull[g0 + i]
+                if not cull[g0 + i]
             ]
             if not blocks:
                 continue
-            out.append(self._element_state(data, be, np.concatenate(blocks), fa.elem_force[first:]))
+            out.append(
+                self._element_state(probe, be, np.concatenate(blocks), elem_force[first:], soil)
+            )
         return out
 
-    def _element_state(self, data, be: BodyElements, idx, elem_force) -> ElementState:
+    def _element_state(self, data, be: BodyElements, idx, elem_force, soil) -> ElementState:
+        from mjrft.core import engine
+
         b = be.body
         rot = data.xmat[b].reshape(3, 3)
         pos = be.centroids[idx] @ rot.T + data.xpos[b]
@@ -347,108 +363,43 @@ class GranularField:
         # cvel = [w, v] with v at the subtree CoM of the body's root (docs/design.md section 3).
         omega, v_ref = data.cvel[b, :3], data.cvel[b, 3:]
         p_ref = data.subtree_com[self.model.body_rootid[b]]
-        rows = self._quadrature_rows(data, be, rot, omega, v_ref, p_ref)[idx]
+        t = self._tables
+        rows = engine.quadrature_rows(
+            be, t, soil, rot, data.xpos[b], omega, v_ref, p_ref, data.xipos[b]
+        )[idx]
         # A clipped element acts at its submerged leading part's depth-weighted centroid, with
         # the area that gives that part's depth integral W at that point's depth.
         moved = (rows[:, 9] > 0.0) & np.any(rows[:, :3] != pos, axis=1)
-        fm, soil = self._tables.arrays, soil_block(data, self._tables.arrays.nsoil)
+        ground = self.scene.surface
         for j in np.flatnonzero(moved):
             x, y, z = rows[j, :3]
-            depth = surface.depth(fm.surface_prm, fm.surface_grid, soil, x, y, z)
+            depth = surface.depth(ground.prm, ground.grid, soil, x, y, z)
             pos[j], normal[j], area[j] = rows[j, :3], rows[j, 3:6], rows[j, 9] / depth
         vel = v_ref + np.cross(omega, pos - p_ref)
         return ElementState(b, idx, pos, normal, area, vel, elem_force[idx].copy())
 
-    def _quadrature_rows(self, data, be: BodyElements, rot, omega, v_ref, p_ref) -> np.ndarray:
-        """The kernel's quadrature rows (n, kernel.ROW) of every element of a body."""
-        fm = self._tables.arrays
-        k = int(np.flatnonzero(self.body_ids == be.body)[0])
-        start = int(fm.tgeom_elemadr[fm.tbody_geomadr[k]])
-        n = len(be.areas)
-        b = slice(start, start + n)  # the body's block alone: rows and scratch sized to it
-        rows = np.zeros((n, kernel.ROW))
-        kernel.body_wrench(
-            fm.elem_pos[b], fm.elem_normal[b], fm.elem_area[b], fm.elem_reach[b],
-            fm.elem_patch[b], 0, n, fm.coef, fm.alpha_y, fm.zeta, fm.surface_prm,
-            fm.surface_grid, bool(fm.use_region), fm.region, soil_block(data, fm.nsoil),
-            rot.copy(), data.xpos[be.body].copy(), omega.copy(), v_ref.copy(), p_ref.copy(),
-            data.xipos[be.body].copy(), np.zeros(6), np.zeros((n, 3)), rows,
-        )  # fmt: skip
-        return rows
-
-    def user_xfrc(self, data: mujoco.MjData) -> np.ndarray:
-        """(nbody, 6) ``xfrc_applied`` without the field's contribution (the user's forces)."""
-        return ownership.user_part(data, self._states.find(data), self.body_ids)
-
-    # ------------------------------------------------------------------ installed path
-    def installed(self) -> Installed:
-        """Make RFT forces act inside every ``mj_step``/``mj_forward`` of this model.
-
-        ``with field.installed(): ...``. Applies to every MjData of the model; other models
-        (and model compilation) are not affected. A user's own passive callback keeps running,
-        and one set while installed is chained. Entering and leaving are atomic against Ctrl-C.
-        """
-        return Installed(self)
-
-    def apply_passive(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        """The installed pass, from Python: runs in MuJoCo's passive callback for every pass the
-        native guard does not run itself (an MjData seen for the first time, which is
-        registered here; a failure of the native pass, raised here; Python-callable media).
-
-        Calls no mujoco function: inside a callback, any binding call resets the binding's
-        per-thread error escape, after which an exception raised here would abort the process.
-        """
-        st = self._state(data)
-        if st.registered and st.arrays.status[0] != passive.OK:
-            status, st.arrays.status[0] = int(st.arrays.status[0]), passive.OK
-            self._raise_bad(data, status)  # the native pass failed on this MjData just now
-        if not st.owned:
-            ownership.take(data, st, self.body_ids, self._states.owned())
-            if self._native:
-                guard.register_data(self.model, data._address, st.address)
-                st.registered = True
-        self._run(st, data, passive.INSTALLED)
-
-    def _release_all(self) -> None:
-        """Leaving ``installed()``: every MjData gets back its user part of ``xfrc_applied``; the
-        states stay (``wrench_of`` still reports each MjData's last pass)."""
-        for st in self._states.owned():
-            data = st.data()
-            if data is not None:
-                data.xfrc_applied[:] = ownership.user_part(data, st, self.body_ids)
-            st.owned = False
-            st.registered = False  # guard.uninstall dropped the model's MjData
+    # ------------------------------------------------------------------ stepping
+    @contextlib.contextmanager
+    def installed(self) -> Iterator[GranularField]:
+        """The field acts inside every ``mj_step``/``mj_forward`` of its model: the plugin the
+        model carries does that always, so this context only yields the field (kept so scripts
+        written as ``with field.installed(): ...`` run unchanged)."""
+        yield self
 
 
-class Installed:
-    """The context of ``GranularField.installed()``.
-
-    Entering installs the field in MuJoCo's passive callback (atomically: a Ctrl-C during it
-    rolls it back and is raised after); leaving uninstalls it and gives every MjData its user
-    part of ``xfrc_applied`` back, with Ctrl-C held until both are done. If a previous exit of
-    this field was cut short anyway (an interrupt in the few bytecodes before that hold),
-    entering again finishes it first, with a RuntimeWarning.
-    """
-
-    def __init__(self, field: GranularField) -> None:
-        self.field = field
-
-    def __enter__(self) -> GranularField:
-        f = self.field
-        if guard.installed_handler(f.model) == f.apply_passive:
-            warnings.warn(
-                "the previous installed() of this field was interrupted on its way out and the "
-                "field kept acting since; uninstalling it now",
-                RuntimeWarning,
-                stacklevel=2,
+def _check_tables(model: mujoco.MjModel, tables: dict, given: dict) -> None:
+    """The scene rebuilt here must give the tables the model carries (the same elements, medium,
+    surface and treatment), else the field would describe another scene than the engine runs."""
+    for name, want in plugin.numerics(tables).items():
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, plugin.PREFIX + name)
+        have = model.numeric(i).data if i >= 0 else None
+        if have is None or have.shape != want.shape or not np.array_equal(have, want):
+            how = (
+                f"the options given ({', '.join(sorted(given))})" if given
+                else "the MJCF's own mjrft: values"
+            )  # fmt: skip
+            raise SceneError(
+                f"the model's engine tables ({plugin.PREFIX}{name}) differ from those {how} "
+                "give: pass GranularField the SceneOptions the model was loaded with "
+                "(mjrft.load_model(path, **options) in this process records them)"
             )
-            self.__exit__(None, None, None)
-        guard.install(f.model, f.apply_passive, f._tables.address if f._native else 0)
-        return f
-
-    def __exit__(self, *exc: object) -> None:
-        with HeldSignals():
-            try:
-                guard.uninstall(self.field.model)
-            finally:
-                self.field._release_all()

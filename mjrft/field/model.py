@@ -289,3 +289,110 @@ def build_tables(
     sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),
              "surface_nrow": nrow, "surface_ncol": ncol, "ncoef": len(coef)}  # fmt: skip
     return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))
+
+
+def engine_tables(
+    model: mujoco.MjModel,
+    scene: Scene,
+    bodies: tuple[BodyElements, ...],
+    treat: np.ndarray,
+    mech: np.ndarray,
+) -> dict[str, np.ndarray | int | float]:
+    """The engine's static tables (engine/fields.h) by name: sizes and scalars as numbers, arrays
+    as C-contiguous float64 or int64 arrays. treat (ntbody,) bool: bodies the free-body
+    treatment may act on; mech (ntbody,) bool: bodies the mechanism treatment acts on."""
+    geoms, tbody, adr, num, rbound = [], [], [], [], []
+    geomadr, geomnum, offset = [], [], 0
+    for k, be in enumerate(bodies):
+        geomadr.append(len(geoms))
+        geomnum.append(len(be.geoms))
+        for gi, g in enumerate(be.geoms):
+            geoms.append(int(g))
+            tbody.append(k)
+            adr.append(offset + int(be.segments[gi]))
+            num.append(int(be.segments[gi + 1] - be.segments[gi]))
+            rbound.append(float(model.geom_rbound[g]))
+        offset += len(be.areas)
+    f8 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
+    i8 = lambda x: np.ascontiguousarray(x, dtype=np.int64)  # noqa: E731
+    soil = scene.surface.kind == surface.SOIL
+    material, region = scene.material, scene.region
+    coef = material.kernel_coefficients
+    nrow, ncol = scene.surface.grid.shape
+    quad = [be.quadrature for be in bodies]
+    cat = lambda parts, width: (  # noqa: E731
+        np.concatenate(parts) if parts else np.zeros((0, width))
+    )
+    return {
+        # sizes
+        "nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies), "surface_nrow": nrow,
+        "surface_ncol": ncol, "ncoef": len(coef), "nvert": offset if soil else 1,
+        "nsoil": surface.soil_block(nrow, ncol) if soil else 1,
+        # scalars
+        "surface_z": float(scene.surface_z), "use_region": int(region is not None),
+        "zeta": float(material.zeta), "alpha_y": float(material.alpha_y0),
+        "treat": int(scene.low_speed.on), "reach": float(scene.low_speed.reach),
+        "jacobian_step": lowspeed.JACOBIAN_STEP, "rk4_hold_steps": lowspeed.RK4_HOLD_STEPS,
+        "mech": int(np.any(mech)), "soil": int(soil),
+        # arrays
+        "elem_pos": f8(cat([be.centroids for be in bodies], 3)),
+        "elem_normal": f8(cat([be.normals for be in bodies], 3)),
+        "elem_area": f8(cat([be.areas for be in bodies], 1).ravel()),
+        "tgeom_geomid": i8(geoms), "tgeom_tbody": i8(tbody), "tgeom_elemadr": i8(adr),
+        "tgeom_elemnum": i8(num), "tgeom_rbound": f8(rbound),
+        "tbody_bodyid": i8([be.body for be in bodies]),
+        "tbody_rootid": i8([model.body_rootid[be.body] for be in bodies]),
+        "tbody_geomadr": i8(geomadr), "tbody_geomnum": i8(geomnum), "tbody_treat": i8(treat),
+        "region": f8(np.zeros((2, 3)) if region is None else region),
+        "coef": f8(coef),
+        "tbody_mech": i8(mech), "tbody_dofmask": i8(_dof_masks(model, bodies)),
+        "actuator_affine": i8(_affine_actuators(model)),
+        "actuator_gainaffine": i8(model.actuator_gaintype == GAIN_AFFINE),
+        "actuator_biasaffine": i8(model.actuator_biastype == BIAS_AFFINE),
+        "actuator_actadr": i8(model.actuator_actadr),
+        "actuator_ctrllimited": i8(model.actuator_ctrllimited),
+        "actuator_forcelimited": i8(model.actuator_forcelimited),
+        "surface_prm": f8(scene.surface.prm), "surface_grid": f8(scene.surface.grid),
+        "elem_vert": f8(cat([be.corners for be in bodies], 9) if soil else np.zeros((1, 9))),
+        "elem_reach": f8(cat([q[0] for q in quad], 1).ravel()),
+        "elem_patch": f8(cat([q[1] for q in quad], quadrature.PATCH_SIZE)),
+    }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class FieldSetup:
+    """Everything a field is built from, once per model and options.
+
+    Attributes:
+      scene: the validated scene (mjrft.field.scene).
+      bodies: tagged bodies (id order), their elements in the body frame.
+      geom_elements: tagged geom id -> its ElementSet in the body frame.
+      body_ids: (ntbody,) ids of the tagged bodies.
+      stick_eligible: (ntbody,) True where the free-body treatment may act (free_rigid).
+      mechanism_eligible: (ntbody,) True where the mechanism treatment acts.
+      tables: the engine's static tables (engine_tables).
+    """
+
+    scene: Scene
+    bodies: tuple[BodyElements, ...]
+    geom_elements: dict[int, ElementSet]
+    body_ids: np.ndarray
+    stick_eligible: np.ndarray
+    mechanism_eligible: np.ndarray
+    tables: dict
+
+
+def field_setup(model: mujoco.MjModel, scene: Scene) -> FieldSetup:
+    """Mesh the scene's tagged geoms, decide which bodies the treatments act on, and lay out the
+    engine's tables."""
+    bodies, geoms = body_elements(model, scene)
+    body_ids = np.array([be.body for be in bodies], dtype=np.int64)
+    tagged = set(body_ids.tolist())
+    stick = np.array([free_rigid(model, int(b), tagged) for b in body_ids], dtype=bool)
+    mech = (
+        np.array([mechanism_body(model, int(b)) for b in body_ids], dtype=bool)
+        & ~stick
+        & scene.low_speed.mechanisms
+    )
+    tables = engine_tables(model, scene, bodies, stick, mech)
+    return FieldSetup(scene, bodies, geoms, body_ids, stick, mech, tables)

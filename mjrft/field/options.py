@@ -1,0 +1,59 @@
+"""The scene options: one home for the choices a user may make on top of the MJCF.
+
+Every way in (``mjrft.load_model``, ``GranularField``, ``scene_from_model``, ``WarpField``, the
+CLI, the environments, sweeps) takes a ``SceneOptions`` or its fields as keywords; ``None``
+leaves the MJCF's value (``mjrft:`` custom fields, docs/mjcf.md) in force.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Overrides of the MJCF's ``mjrft:`` section (None: the MJCF's value, or its default).
+
+    Attributes:
+      material: a ``mjrft.Material`` or a preset's name (``mjrft:material``, ``mjrft:zeta``).
+      n_triangles: triangle count of every primitive geom (MJCF ``prm``, ``mjrft:triangles``);
+        mesh geoms keep their own.
+      tolerance: instead of n_triangles, the relative RMS force error wanted per primitive
+        geom; the count comes from ``mjrft.geometry.triangles_for_tolerance``.
+      low_speed: "stick", "free" or "off" (``mjrft:low_speed``; docs/stability.md).
+      stick_reach: the low-speed treatment's reach (``mjrft:stick_reach``).
+      deform_cell: the deforming ground's cell [m], 0 off (``mjrft:deform_cell``).
+      repose: its angle of repose [deg] (``mjrft:repose``).
+      deform_every: steps between its updates (``mjrft:deform_every``).
+      dynamic: the dynamic RFT term's rho_c [kg/m^3] or (rho_c, lambda), 0 off
+        (``mjrft:dynamic``).
+    """
+
+    material: Any = None
+    n_triangles: int | None = None
+    tolerance: float | None = None
+    low_speed: str | None = None
+    stick_reach: float | None = None
+    deform_cell: float | None = None
+    repose: float | None = None
+    deform_every: int | None = None
+    dynamic: float | tuple[float, float] | None = None
+
+    @classmethod
+    def of(cls, options: SceneOptions | None = None, **overrides: Any) -> SceneOptions:
+        """options with keyword overrides (names of SceneOptions' fields; a misspelt name is
+        refused with the valid ones)."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(overrides) - names)
+        if unknown:
+            raise TypeError(
+                f"unknown scene option(s) {', '.join(unknown)}; valid: {', '.join(sorted(names))}"
+            )
+        base = {f.name: getattr(options, f.name) for f in fields(cls)} if options else {}
+        base.update({k: v for k, v in overrides.items() if v is not None})
+        return cls(**base)
+
+    def given(self) -> dict[str, Any]:
+        """The options that override the MJCF (not None), by name."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
