@@ -247,3 +247,150 @@ def test_a_rod_on_random_rough_ground(lib, seed):
     drive(c, np.linspace(-0.015, 0.05, 40))
     stats = f._states.of(d).arrays.soil_stats
     assert c.updates == 240 and not c.bad and stats[1] > 0.0 and stats[3] > 0
+
+
+# Unit level: each function of soil.h against its numba original on seeded random grids. The
+# numba functions are compiled here for plain arrays, in memory only (their cache left alone:
+# the shared cache holds them only inlined into deform.update).
+NROW, NCOL = 23, 31
+
+
+@pytest.fixture(scope="module")
+def nb():
+    from numba.core.caching import NullCache
+
+    for name in ("footprint", "excavate", "deposit", "relax", "finish"):
+        getattr(soil, name)._cache = NullCache()
+    return soil
+
+
+def random_ground(rng, tan_repose=0.6):
+    """prm, grid and a soil block of an NROW x NCOL grid with rough heights, c <= h, p >= 0."""
+    prm = np.zeros(surface.PRM_SIZE)
+    prm[surface.KIND] = surface.SOIL
+    prm[[surface.X0, surface.Y0, surface.DX, surface.DY]] = -0.031, -0.02, 0.002, 0.0017
+    prm[surface.NCOL], prm[surface.NROW] = NCOL, NROW
+    prm[surface.TAN_REPOSE], prm[surface.EVERY] = tan_repose, 1
+    grid = rng.uniform(-0.002, 0.002, (NROW, NCOL))
+    prm[surface.ZMAX] = grid.max()
+    block = np.zeros(surface.soil_block(NROW, NCOL))
+    h, c, p = soil.block_views(prm, block)
+    h[:] = rng.uniform(-0.005, 0.005, h.shape)
+    c[:] = h - rng.uniform(0.0, 0.002, h.shape) * (rng.random(h.shape) < 0.5)
+    p[:] = rng.uniform(0.0, 0.003, h.shape)
+    return prm, grid, block
+
+
+def random_floor(rng, prm, grid, block):
+    """Floors over a few patches: pressing (below h), touching, hovering (above h), none."""
+    h = grid + soil.block_views(prm, block)[0]
+    floor = np.full((NROW, NCOL), np.inf)
+    owner = np.full((NROW, NCOL), -1, np.int64)
+    for k in range(3):
+        r0, c0 = rng.integers(0, NROW - 4), rng.integers(0, NCOL - 4)
+        r1, c1 = r0 + rng.integers(2, 8), c0 + rng.integers(2, 10)
+        patch = (slice(r0, r1), slice(c0, c1))
+        shape = h[patch].shape
+        kind = rng.integers(0, 4, shape)
+        f = np.where(kind == 0, h[patch] - rng.uniform(0, 0.004, shape), h[patch])
+        f = np.where(kind == 2, h[patch] + rng.uniform(2e-7, 0.003, shape), f)
+        f = np.where(kind == 3, h[patch] + rng.uniform(0, 2e-7, shape), f)
+        better = f < floor[patch]
+        floor[patch] = np.where(better, f, floor[patch])
+        owner[patch] = np.where(better, k, owner[patch])
+    return floor, owner
+
+
+def boxes_of(owner, nk=3):
+    out = np.tile([2147483647.0, -1.0, 2147483647.0, -1.0], (nk, 1))
+    for k in range(nk):
+        r, c = np.nonzero(owner == k)
+        if len(r):
+            out[k] = r.min(), r.max(), c.min(), c.max()
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_relax_on_random_grids(lib, nb, seed):
+    rng = np.random.default_rng(seed)
+    prm, grid, block = random_ground(rng, tan_repose=rng.uniform(0.3, 0.8))
+    floor, _ = random_floor(rng, prm, grid, block)
+    r0, c0 = rng.integers(-1, NROW // 2), rng.integers(-1, NCOL // 2)
+    box = np.array([r0, r0 + rng.integers(0, NROW), c0, c0 + rng.integers(0, NCOL)], float)
+    args = [block, np.full((NROW, NCOL), -1, np.int64), np.zeros(NROW * NCOL, np.int64), box,
+            box.copy(), np.zeros(soil.N_SOIL_STATS)]  # fmt: skip
+    mine = [a.copy() for a in args]
+    want = nb.relax(prm, grid, args[0], floor, *args[1:])
+    got = lib.mjrft_test_soil_relax(prm, grid, mine[0], floor, mine[1].ravel(), *mine[2:])
+    assert bool(got) == want
+    for a, b in zip(mine, args, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.any(block != random_ground(np.random.default_rng(seed))[2])  # material moved
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_excavate_and_deposit_on_random_grids(lib, nb, seed):
+    rng = np.random.default_rng(seed)
+    prm, grid, block = random_ground(rng)
+    floor, owner = random_floor(rng, prm, grid, block)
+    boxes = boxes_of(owner)
+    zlo = -0.006 if seed == 5 else -1.0  # seed 5: a floor below the bottom
+    mine, stats, my_stats = block.copy(), np.zeros(soil.N_SOIL_STATS), np.zeros(soil.N_SOIL_STATS)
+    work = np.zeros(NROW * NCOL, np.int64)
+    cut = np.zeros(6)
+    bottom = False
+    for k in range(3):
+        if boxes[k, 0] > boxes[k, 1]:
+            continue
+        twist = rng.normal(size=9) * [0.1, 0.1, 0.1, 2.0, 2.0, 2.0, 0.01, 0.01, 0.01]
+        want = nb.excavate(prm, grid, block, floor, owner, boxes[k], k, twist, zlo, stats)
+        lib.mjrft_test_soil_excavate(prm, grid, mine, floor, owner.ravel(), boxes[k], k, twist,
+                                     zlo, my_stats, cut)  # fmt: skip
+        np.testing.assert_array_equal(cut, want)
+        np.testing.assert_array_equal(mine, block)
+        bottom |= want[0] < 0.0
+        if want[0] > 0.0:
+            v = np.array(want[3:])
+            if k == 1:
+                v[:2] = 0.0  # straight down: an even rim
+            nb.deposit(prm, grid, block, floor, owner, boxes[k], k, want[0], want[1], want[2], v,
+                       stats)  # fmt: skip
+            lib.mjrft_test_soil_deposit(prm, grid, mine, floor, owner.ravel(), boxes[k], k,
+                                        want[0], want[1], want[2], v, my_stats, work)  # fmt: skip
+            np.testing.assert_array_equal(mine, block)
+        np.testing.assert_array_equal(my_stats, stats)
+    assert stats[1] > 0.0 and bottom == (seed == 5)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_footprint_and_finish_on_random_grids(lib, nb, seed):
+    rng = np.random.default_rng(seed)
+    prm, grid, block = random_ground(rng)
+    # Triangles of random orientation and size around the grid, some crossing its edge.
+    n = 400
+    centre = rng.uniform([-0.035, -0.024, -0.004], [0.035, 0.024, 0.004], (n, 1, 3))
+    vert = (centre + rng.normal(scale=0.004, size=(n, 3, 3))).reshape(n, 9)
+    quat = rng.normal(size=4)
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, quat / np.linalg.norm(quat))
+    rot = rot.reshape(3, 3)
+    pos = rng.normal(scale=0.003, size=3)
+    floor = np.full((NROW, NCOL), np.inf)
+    owner = np.full((NROW, NCOL), -1, np.int64)
+    box = np.array([2147483647.0, -1.0, 2147483647.0, -1.0])
+    mine = [floor.copy(), owner.copy(), box.copy()]
+    top = 0.003 if seed % 2 else np.inf
+    for k, (start, stop) in enumerate(((0, 150), (150, 400))):
+        want = nb.footprint(prm, vert, start, stop, rot, pos, k, floor, owner, box, top)
+        got = lib.mjrft_test_soil_footprint(prm, vert, start, stop, rot.ravel(), pos, k,
+                                            mine[0], mine[1], mine[2], top)  # fmt: skip
+        assert got == want > 0
+        for a, b in zip(mine, (floor, owner, box), strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert np.isfinite(floor).sum() > 50
+    mine_block = block.copy()
+    nb.finish(prm, grid, block, floor, owner, box, 0.25)
+    lib.mjrft_test_soil_finish(prm, grid, mine_block, mine[0], mine[1], box, 0.25)
+    np.testing.assert_array_equal(mine_block, block)
+    np.testing.assert_array_equal(mine[0], floor)
+    np.testing.assert_array_equal(mine[1], owner)
