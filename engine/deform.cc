@@ -1,0 +1,136 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+
+#include "deform.h"
+
+#include <cstdint>
+
+#include "evaluate.h"
+#include "soil.h"
+#include "surface.h"
+
+namespace mjrft::deform {
+namespace {
+
+// An empty vertex box's bounds (numba's float(np.iinfo(np.int32).max)).
+constexpr f64 kBig = static_cast<f64>(INT32_MAX);
+
+void Empty(f64* box) {
+  box[0] = kBig;
+  box[1] = -1.0;
+  box[2] = kBig;
+  box[3] = -1.0;
+}
+
+// Rasterises every tagged body's geoms that may touch the medium below top [m]; box k of
+// s.soil_box is body k's footprint, row nk their union.
+void Footprints(const mjData* d, const Tables& t, State& s, f64 top) {
+  i64 nk = t.ntbody;
+  f64* allbox = s.soil_box + 4 * nk;
+  Empty(allbox);
+  for (i64 k = 0; k < nk; k++) {
+    f64* kb = s.soil_box + 4 * k;
+    Empty(kb);
+    i64 b = t.tbody_bodyid[k];
+    for (i64 g = t.tbody_geomadr[k]; g < t.tbody_geomadr[k] + t.tbody_geomnum[k]; g++) {
+      if (Culled(d, t, s, static_cast<int>(g))) continue;
+      i64 start = t.tgeom_elemadr[g];
+      s.soil_stats[soil::kStatRasterised] +=
+          soil::Footprint(t.surface_prm, t.elem_vert, start, start + t.tgeom_elemnum[g],
+                          d->xmat + 9 * b, d->xpos + 3 * b, k, s.soil_floor, s.soil_owner, kb,
+                          top);
+    }
+    soil::Union(allbox, kb[0], kb[1], kb[2], kb[3]);
+  }
+}
+
+// Grows box by the vertex box stored at block[at..at + 3] (r0, r1 + 1, c0, c1 + 1; empty when
+// r1 + 1 <= r0, as all zeros are after mj_resetData).
+void HeadUnion(f64* box, const f64* block, int at) {
+  if (block[at + 1] > block[at] && block[at + 3] > block[at + 2]) {
+    soil::Union(box, block[at], block[at + 1] - 1, block[at + 2], block[at + 3] - 1);
+  }
+}
+
+// Stores vertex box (4) (r0, r1, c0, c1) at block[at..at + 3]; an empty box, or any box if not
+// keep, as zeros.
+void HeadStore(f64* block, int at, const f64* box, bool keep) {
+  if (keep && box[0] <= box[1] && box[2] <= box[3]) {
+    block[at] = box[0];
+    block[at + 1] = box[1] + 1;
+    block[at + 2] = box[2];
+    block[at + 3] = box[3] + 1;
+  } else {
+    block[at] = block[at + 1] = block[at + 2] = block[at + 3] = 0.0;
+  }
+}
+
+}  // namespace
+
+bool Due(const mjModel* m, const mjData* d, const Tables& t, const State& s) {
+  const f64* block = s.soil;
+  f64 now = d->time, last = block[surface::kSoilTime];
+  if (block[surface::kSoilDone] == 0.0 || now < last) return true;
+  f64 every = t.surface_prm[surface::kEvery];
+  if (every <= 1.0) return last != now;
+  return now - last > (every - 0.5) * m->opt.timestep;
+}
+
+int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
+  (void)m;
+  const f64* prm = t.surface_prm;
+  const f64* grid = t.surface_grid;
+  f64* block = s.soil;
+  i64 nk = t.ntbody;
+  Footprints(d, t, s, surface::Ceiling(prm, block));
+  const f64* allbox = s.soil_box + 4 * nk;
+
+  // Excavation and deposition, intruder by intruder.
+  int bad = -1;
+  for (i64 k = 0; k < nk; k++) {
+    const f64* kb = s.soil_box + 4 * k;
+    if (kb[0] > kb[1]) continue;
+    i64 b = t.tbody_bodyid[k];
+    i64 root = t.tbody_rootid[k];
+    f64 twist[9];
+    for (int c = 0; c < 3; c++) {  // cvel: (omega, v at the root's subtree CoM), world frame
+      twist[c] = d->cvel[6 * b + 3 + c];
+      twist[3 + c] = d->cvel[6 * b + c];
+      twist[6 + c] = d->subtree_com[3 * root + c];
+    }
+    soil::Cut cut = soil::Excavate(prm, grid, block, s.soil_floor, s.soil_owner, kb, k, twist,
+                                   t.region[2], s.soil_stats);
+    if (cut.vol < 0.0) {
+      bad = static_cast<int>(k);
+    } else if (cut.vol > 0.0) {
+      soil::Deposit(prm, grid, block, s.soil_floor, s.soil_owner, kb, k, cut.vol, cut.mx, cut.my,
+                    cut.v, s.soil_stats, s.soil_queue);
+    }
+  }
+
+  // Relax where the intruders are, where they were (a withdrawn rod leaves a hole to slump) and
+  // where the last update left slopes unrelaxed.
+  f64* box = s.soil_box + 4 * (nk + 1);
+  f64* seen = s.soil_box + 4 * (nk + 2);
+  for (int c = 0; c < 4; c++) box[c] = allbox[c];
+  HeadUnion(box, block, surface::kSoilFoot);
+  HeadUnion(box, block, surface::kSoilPending);
+  HeadStore(block, surface::kSoilFoot, allbox, true);
+  s.soil_stats[soil::kStatUpdates] += 1;
+  if (box[0] > box[1]) {
+    block[surface::kSoilDone] = 1.0;
+    block[surface::kSoilTime] = d->time;
+    return bad;
+  }
+  box[0] -= 1;
+  box[1] += 1;
+  box[2] -= 1;
+  box[3] += 1;
+  for (int c = 0; c < 4; c++) seen[c] = box[c];
+  bool converged = soil::Relax(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_queue, box,
+                               seen, s.soil_stats);
+  HeadStore(block, surface::kSoilPending, box, !converged);
+  soil::Finish(prm, grid, block, s.soil_floor, s.soil_owner, seen, d->time);
+  return bad;
+}
+
+}  // namespace mjrft::deform

@@ -1,0 +1,395 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+
+#include "soil.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "surface.h"
+
+namespace mjrft::soil {
+namespace {
+
+using surface::kDx;
+using surface::kDy;
+using surface::kNcol;
+using surface::kNrow;
+using surface::kSoilContact;
+using surface::kSoilHead;
+using surface::kX0;
+using surface::kY0;
+
+constexpr f64 kInf = std::numeric_limits<f64>::infinity();
+
+// Body-frame point (x, y, z) in the world: rot (3 x 3) body -> world, pos (3).
+inline void World(const f64* rot, const f64* pos, f64 x, f64 y, f64 z, f64 out[3]) {
+  for (int i = 0; i < 3; i++) {
+    out[i] = rot[3 * i] * x + rot[3 * i + 1] * y + rot[3 * i + 2] * z + pos[i];
+  }
+}
+
+// Offsets in the soil block of the h and c offsets and of the memory p.
+struct Offsets {
+  i64 oh, oc, op;
+};
+inline Offsets OffsetsOf(const f64* prm) {
+  i64 n = static_cast<i64>(prm[kNcol]) * static_cast<i64>(prm[kNrow]);
+  return {kSoilHead, kSoilHead + n, kSoilHead + 2 * n};
+}
+
+// True if an intruder presses on vertex (r, c): its floor at the surface (after the cut).
+inline bool Contact(const f64* prm, const f64* grid, const f64* soil, const f64* floor, i64 r,
+                    i64 c) {
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  return floor[r * ncol + c] < grid[r * ncol + c] + soil[kSoilHead + r * ncol + c] + kSoilContact;
+}
+
+// True if vertex (r, c), free of contact (and with no intruder over it if open_sky), borders a
+// vertex intruder k presses on (8-neighbourhood).
+inline bool Rim(const f64* prm, const f64* grid, const f64* soil, const f64* floor,
+                const i64* owner, i64 r, i64 c, i64 k, bool open_sky) {
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  if ((open_sky && floor[r * ncol + c] < kInf) || Contact(prm, grid, soil, floor, r, c)) {
+    return false;
+  }
+  for (i64 a = -1; a < 2; a++) {
+    for (i64 b = -1; b < 2; b++) {
+      if (owner[(r + a) * ncol + c + b] == k && Contact(prm, grid, soil, floor, r + a, c + b)) {
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+// Moves height q [m] of material from vertex i to vertex j (flat indices); an eroded vertex
+// loses its loose layer first, then its compacted level follows its surface down.
+inline void Move(f64* soil, const Offsets& o, i64 i, i64 j, f64 q) {
+  soil[o.oh + i] -= q;
+  soil[o.oh + j] += q;
+  if (soil[o.oh + i] < soil[o.oc + i]) soil[o.oc + i] = soil[o.oh + i];
+}
+
+// Moves material between free vertices i and j (heights hi, hj, intruder floors fi, fj [m],
+// +inf where none) so that they differ by at most lim [m]; returns the height moved.
+//
+// Material enters the gap under a hovering intruder (floor f) only up to f, and only from a
+// neighbour that is also under an intruder or no higher than f: the intruder's side holds a
+// wall that stands above its floor (a height field cannot undercut it).
+inline f64 SettlePair(f64* soil, const Offsets& o, i64 i, f64 hi, f64 fi, i64 j, f64 hj, f64 fj,
+                      f64 lim) {
+  f64 diff = hi - hj;
+  if (diff > lim + kSlopeSlack) {
+    if (fj < kInf && fi == kInf && hi > fj) return 0.0;
+    f64 q = std::min(0.5 * (diff - lim), fj - hj);
+    Move(soil, o, i, j, q);
+    return q;
+  }
+  if (-diff > lim + kSlopeSlack) {
+    if (fi < kInf && fj == kInf && hj > fi) return 0.0;
+    f64 q = std::min(0.5 * (-diff - lim), fi - hi);
+    Move(soil, o, j, i, q);
+    return q;
+  }
+  return 0.0;
+}
+
+// The relaxation's queue: a ring buffer over the nrow * ncol vertices, each at most once (the
+// mark), so it never fills.
+struct Queue {
+  i64* items;
+  i64 cap;
+  i64 tail = 0;
+  i64 count = 0;
+
+  // Flat index of the i-th waiting vertex (0: the oldest).
+  i64 At(i64 q) const { return items[(((tail - count + q) % cap) + cap) % cap]; }
+
+  // Appends vertex i (row r, column c) unless it waits already; seen (4) grows over it.
+  void Push(i64* mark, i64 ncol, i64 i, i64 r, i64 c, f64* seen) {
+    if (mark[r * ncol + c] == kQueued) return;
+    items[tail] = i;
+    tail = (tail + 1) % cap;
+    mark[r * ncol + c] = kQueued;
+    Union(seen, r, r, c, c);
+    count++;
+  }
+};
+
+// (height h [m], intruder floor f [m], free) of vertex (r, c): not free if an intruder presses
+// on it (it neither gives nor takes).
+struct Vertex {
+  f64 h, f;
+  bool free;
+};
+inline Vertex Free(const f64* grid, const f64* soil, i64 oh, const f64* floor, i64 r, i64 c,
+                   i64 ncol) {
+  f64 h = grid[r * ncol + c] + soil[oh + r * ncol + c];
+  f64 f = floor[r * ncol + c];
+  return {h, f, f >= h + kSoilContact};
+}
+
+// Settles free vertex i (row r, column c, height hi, floor fi) with its neighbour at
+// (r + a, c + b) (limit lim); if material moved, queues both.
+inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets& o,
+                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* seen, i64 i,
+                       i64 r, i64 c, f64 hi, f64 fi, i64 a, i64 b) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  i64 rr = r + a, cc = c + b;
+  if (rr < 1 || rr > nrow - 2 || cc < 1 || cc > ncol - 2) return;
+  Vertex vj = Free(grid, soil, o.oh, floor, rr, cc, ncol);
+  if (!vj.free) return;
+  i64 j = rr * ncol + cc;
+  if (SettlePair(soil, o, i, hi, fi, j, vj.h, vj.f, lim) <= 0.0) {
+    return;  // in repose, or capped by an intruder: settled
+  }
+  queue.Push(mark, ncol, j, rr, cc, seen);
+  queue.Push(mark, ncol, i, r, c, seen);
+}
+
+// The eight neighbours of a vertex: row step, column step, index of the limit (x, y, diagonal).
+constexpr int kNeighbours[8][3] = {{0, 1, 0},  {0, -1, 0},  {1, 0, 1},  {-1, 0, 1},
+                                   {1, 1, 2},  {-1, -1, 2}, {1, -1, 2}, {-1, 1, 2}};
+// The sweep's pairs of a vertex, each pair once: right, up, up-right, up-left.
+constexpr int kSweep[4][3] = {{0, 1, 0}, {1, 0, 1}, {1, 1, 2}, {1, -1, 2}};
+
+}  // namespace
+
+void Union(f64* box, f64 r0, f64 r1, f64 c0, f64 c1) {
+  if (r0 <= r1 && c0 <= c1) {
+    box[0] = std::min(box[0], r0);
+    box[1] = std::max(box[1], r1);
+    box[2] = std::min(box[2], c0);
+    box[3] = std::max(box[3], c1);
+  }
+}
+
+int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot,
+              const f64* pos, i64 k, f64* floor, i64* owner, f64* box, f64 top) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 x0 = prm[kX0], y0 = prm[kY0], dx = prm[kDx], dy = prm[kDy];
+  int done = 0;
+  for (i64 i = start; i < stop; i++) {
+    const f64* tri = vert + 9 * i;
+    f64 pa[3], pb[3], pc[3];
+    World(rot, pos, tri[0], tri[1], tri[2], pa);
+    World(rot, pos, tri[3], tri[4], tri[5], pb);
+    World(rot, pos, tri[6], tri[7], tri[8], pc);
+    f64 ax = pa[0], ay = pa[1], az = pa[2];
+    f64 bx = pb[0], by = pb[1], bz = pb[2];
+    f64 cx = pc[0], cy = pc[1], cz = pc[2];
+    if (std::min({az, bz, cz}) >= top) continue;
+    f64 ux = bx - ax, uy = by - ay, wx = cx - ax, wy = cy - ay;
+    f64 twice = ux * wy - uy * wx;  // twice the signed xy area: < 0 for a downward-facing face
+    if (twice >= 0.0) continue;
+    done++;
+    i64 c0 = std::max<i64>(0, static_cast<i64>(std::ceil((std::min({ax, bx, cx}) - x0) / dx)));
+    i64 c1 = std::min<i64>(ncol - 1,
+                           static_cast<i64>(std::floor((std::max({ax, bx, cx}) - x0) / dx)));
+    i64 r0 = std::max<i64>(0, static_cast<i64>(std::ceil((std::min({ay, by, cy}) - y0) / dy)));
+    i64 r1 = std::min<i64>(nrow - 1,
+                           static_cast<i64>(std::floor((std::max({ay, by, cy}) - y0) / dy)));
+    f64 inv = 1.0 / twice;
+    for (i64 r = r0; r <= r1; r++) {
+      f64 qy = y0 + r * dy - ay;
+      for (i64 c = c0; c <= c1; c++) {
+        f64 qx = x0 + c * dx - ax;
+        f64 b = (qx * wy - qy * wx) * inv;
+        f64 g = (ux * qy - uy * qx) * inv;
+        // A vertex on a shared edge belongs to both triangles (kEdgeSlack).
+        if (b < -kEdgeSlack || g < -kEdgeSlack || b + g > 1.0 + kEdgeSlack) continue;
+        f64 z = az + b * (bz - az) + g * (cz - az);
+        if (z < floor[r * ncol + c]) {
+          floor[r * ncol + c] = z;
+          owner[r * ncol + c] = k;
+          Union(box, r, r, c, c);
+        }
+      }
+    }
+  }
+  return done;
+}
+
+Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+             const f64* box, i64 k, const f64* twist, f64 zlo, f64* stats) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  Offsets o = OffsetsOf(prm);
+  f64 area = prm[kDx] * prm[kDy];
+  f64 vol = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
+  for (i64 r = static_cast<i64>(box[0]); r <= static_cast<i64>(box[1]); r++) {
+    for (i64 c = static_cast<i64>(box[2]); c <= static_cast<i64>(box[3]); c++) {
+      i64 i = r * ncol + c;
+      if (owner[i] != k) continue;
+      f64 base = grid[i];
+      f64 h = base + soil[o.oh + i];
+      f64 f = floor[i];
+      if (f >= h) continue;  // above the surface, or touching it: nothing to cut
+      if (f < zlo) return {-1.0, 0.0, 0.0, {0.0, 0.0, 0.0}};
+      if (r == 0 || c == 0 || r == nrow - 1 || c == ncol - 1) {
+        stats[kStatEdge] += 1;  // the edge ring never changes (volume bookkeeping)
+        continue;
+      }
+      f64 cut = h - f;
+      // The floor is compacted with the larger of the two references over it: the loose
+      // surface h, or the compacted level's own c + p (loose material that slumped into an
+      // old footprint does not add to the depth its floor remembers).
+      f64 ref = std::max(h, base + soil[o.oc + i] + soil[o.op + i]);
+      soil[o.oh + i] = f - base;
+      soil[o.oc + i] = f - base;
+      soil[o.op + i] = ref - f;
+      vol += cut * area;
+      mx += cut * area * (prm[kX0] + c * prm[kDx]);
+      my += cut * area * (prm[kY0] + r * prm[kDy]);
+      mz += cut * area * f;
+    }
+  }
+  if (vol <= 0.0) return {0.0, 0.0, 0.0, {0.0, 0.0, 0.0}};
+  mx = mx / vol;
+  my = my / vol;
+  mz = mz / vol;
+  // The footprint's centre moves with the intruder: a slipping wheel's bottom moves backwards.
+  f64 rx = mx - twist[6], ry = my - twist[7], rz = mz - twist[8];
+  Cut out = {vol, mx, my, {0.0, 0.0, 0.0}};
+  out.v[0] = twist[0] + twist[4] * rz - twist[5] * ry;
+  out.v[1] = twist[1] + twist[5] * rx - twist[3] * rz;
+  out.v[2] = twist[2] + twist[3] * ry - twist[4] * rx;
+  stats[kStatExcavated] += vol;
+  return out;
+}
+
+void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats,
+             i64* work) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 vh = std::hypot(v[0], v[1]);
+  f64 s = vh + std::abs(v[2]) > 0.0 ? vh / (vh + std::abs(v[2])) : 0.0;
+  f64 ux = vh > 0.0 ? v[0] / vh : 0.0;
+  f64 uy = vh > 0.0 ? v[1] / vh : 0.0;
+  i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]) - 1);
+  i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]) + 1);
+  i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]) - 1);
+  i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]) + 1);
+  i64 wcol = std::max<i64>(0, c1 - c0 + 1);
+  // The rim is chosen before anything is deposited: material landing under a hovering intruder
+  // can bring that vertex into contact and make its neighbours rim vertices, and weights summed
+  // over one rim but spent over another would not conserve the volume. The weights are doubles
+  // kept bit for bit in the i64 work array.
+  auto put = [&](i64 r, i64 c, f64 w) { std::memcpy(work + (r - r0) * wcol + (c - c0), &w, 8); };
+  auto get = [&](i64 r, i64 c) {
+    f64 w;
+    std::memcpy(&w, work + (r - r0) * wcol + (c - c0), 8);
+    return w;
+  };
+  for (bool open_sky : {true, false}) {
+    f64 total = 0.0;
+    for (i64 r = r0; r <= r1; r++) {
+      for (i64 c = c0; c <= c1; c++) {
+        put(r, c, 0.0);
+        if (!Rim(prm, grid, soil, floor, owner, r, c, k, open_sky)) continue;
+        f64 ex = prm[kX0] + c * prm[kDx] - mx, ey = prm[kY0] + r * prm[kDy] - my;
+        f64 e = std::hypot(ex, ey);
+        f64 cos = e > 0.0 ? (ex * ux + ey * uy) / e : 0.0;
+        f64 w = (1.0 - s) + 2.0 * s * std::max(0.0, cos);
+        put(r, c, w);
+        total += w;
+      }
+    }
+    if (total > 0.0) {
+      f64 scale = vol / (prm[kDx] * prm[kDy]) / total;
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) soil[kSoilHead + r * ncol + c] += get(r, c) * scale;
+      }
+      return;
+    }
+  }
+  stats[kStatUnplaced] += vol;
+}
+
+bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
+           f64* box, f64* seen, f64* stats) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  Offsets o = OffsetsOf(prm);
+  f64 t = prm[surface::kTanRepose];
+  const f64 lim[3] = {t * prm[kDx], t * prm[kDy], t * std::hypot(prm[kDx], prm[kDy])};
+  i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]));
+  i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]));
+  i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]));
+  i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]));
+  if (r0 > r1 || c0 > c1) return true;
+  Union(seen, r0, r1, c0, c1);
+  i64 budget = kMaxSweeps * 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
+  Queue q{queue, nrow * ncol};
+  // The sweep: each pair once.
+  for (i64 r = r0; r <= r1; r++) {
+    for (i64 c = c0; c <= c1; c++) {
+      Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
+      if (!vi.free) continue;
+      i64 i = r * ncol + c;
+      f64 hi = vi.h;
+      for (const auto& n : kSweep) {
+        SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
+                   n[1]);
+        hi = grid[i] + soil[o.oh + i];
+      }
+    }
+  }
+  // Then vertex by vertex wherever material moved.
+  i64 visits = 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
+  while (q.count > 0 && visits < budget) {
+    i64 i = q.At(0);
+    q.count--;
+    i64 r = i / ncol, c = i % ncol;
+    mark[i] = -1;
+    Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
+    if (!vi.free) continue;
+    f64 hi = vi.h;
+    for (const auto& n : kNeighbours) {
+      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
+                 n[1]);
+      hi = grid[i] + soil[o.oh + i];
+    }
+    visits += 8;
+  }
+  if (q.count == 0) return true;
+  // What is left waits for the next update (its box).
+  f64 lo_r = nrow, hi_r = -1, lo_c = ncol, hi_c = -1;
+  for (i64 k = 0; k < q.count; k++) {
+    i64 i = q.At(k);
+    f64 r = i / ncol, c = i % ncol;
+    mark[i] = -1;
+    lo_r = std::min(lo_r, r);
+    hi_r = std::max(hi_r, r);
+    lo_c = std::min(lo_c, c);
+    hi_c = std::max(hi_c, c);
+  }
+  box[0] = lo_r;
+  box[1] = hi_r;
+  box[2] = lo_c;
+  box[3] = hi_c;
+  stats[kStatUnrelaxed] += 1;
+  return false;
+}
+
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
+            f64 time) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 top = -kInf;
+  i64 r0 = std::max<i64>(0, static_cast<i64>(box[0]) - 1);
+  i64 r1 = std::min<i64>(nrow - 1, static_cast<i64>(box[1]) + 1);
+  i64 c0 = std::max<i64>(0, static_cast<i64>(box[2]) - 1);
+  i64 c1 = std::min<i64>(ncol - 1, static_cast<i64>(box[3]) + 1);
+  for (i64 r = r0; r <= r1; r++) {
+    for (i64 c = c0; c <= c1; c++) {
+      top = std::max(top, grid[r * ncol + c] + soil[kSoilHead + r * ncol + c]);
+      floor[r * ncol + c] = kInf;
+      owner[r * ncol + c] = -1;
+    }
+  }
+  soil[surface::kSoilZoff] = std::max(soil[surface::kSoilZoff], top - prm[surface::kZmax]);
+  soil[surface::kSoilDone] = 1.0;
+  soil[surface::kSoilTime] = time;
+}
+
+}  // namespace mjrft::soil

@@ -1,0 +1,137 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+//
+// Ground that deforms and remembers: a height grid pressed down by intruders, bulldozed and
+// relaxed to the angle of repose, with the memory of how deep its compacted columns were
+// (mjrft.core.soil states the same rules in Python; docs/terrain.md).
+//
+// The grid (surface.h, kind kSoil) has vertices every dx, dy over the medium's region; vertex v
+// stands for the column of one cell area centred on it. Its state, per mjData (the soil block,
+// State::soil), is its surface height h, its compacted level c <= h and its memory p >= 0. The
+// resisting depth of a point at height z in the column is (h + p) - z below c and h - z between
+// c and h (surface::SoilDepth). Pristine ground has c = h, p = 0.
+//
+// One update (deform.h, with the functions below) follows the intruders to a new configuration:
+//
+// 1. Footprints (Footprint): every downward-facing triangle of an intruder (its lower surface,
+//    seen from above) is rasterised onto the vertices below it; a vertex whose floor (the
+//    lowest such triangle over it) lies below its surface h is occupied.
+// 2. Excavation (Excavate): an occupied column is cut down to the floor, which becomes its
+//    compacted level (c = h = floor) and remembers as its depth reference the larger of the old
+//    surface h and the old c + p (Chrono SCM's sinkage memory plays this role in Bekker-Wong
+//    soil).
+// 3. Deposition (Deposit): each intruder's excavated volume is spread over the rim of its
+//    footprint (the unoccupied vertices next to it), weighted towards the horizontal motion of
+//    the footprint's centre: a vertical intrusion raises an even rim, a horizontal one
+//    bulldozes ahead of it. It lands as loose material (h grows, c and p unchanged).
+// 4. Relaxation (Relax): wherever two neighbouring vertices (along x, y and both diagonals)
+//    differ by more than tan(repose) times their distance, material moves from the higher to
+//    the lower one (half the excess, so the pair ends exactly at the repose slope): one sweep
+//    over the box of recent activity, then vertex by vertex wherever material moved, never into
+//    or out of a column an intruder presses on or the grid's edge ring, and into the gap under
+//    a hovering intruder only up to its floor.
+//
+// Every move subtracts from one vertex exactly what it adds to another, and the edge ring never
+// changes, so the volume under the surface (dx dy times the sum of h over the vertices) is
+// conserved up to rounding. World frame, SI units; arrays only (no MuJoCo).
+//
+// Common arguments: prm (kPrmSize) and grid (nrow x ncol initial heights [m]) of the surface;
+// soil (surface::SoilBlock) the block; floor (nrow x ncol) [m] the intruders' lowest point per
+// vertex (+inf where none); owner (nrow x ncol) the tagged body over each vertex (-1: none);
+// a vertex box (4) is (r0, r1, c0, c1) as doubles, empty when r0 > r1; stats (kNSoilStats)
+// the work counters (kStat*). All arrays row-major.
+
+#ifndef MJRFT_ENGINE_SOIL_H_
+#define MJRFT_ENGINE_SOIL_H_
+
+#include "tables.h"
+
+namespace mjrft::soil {
+
+// Barycentric slack of the rasterisation: a vertex on an edge shared by two triangles is
+// covered by both, whatever the rounding.
+constexpr f64 kEdgeSlack = 1e-12;
+// Relaxation work per update at most, in sweeps of the update's box (Relax: the pair visits of
+// this many sweeps); what is left continues at the next update (counted in kStatUnrelaxed). A
+// pile's excess travels down its slope diffusively, so a growing berm would take ~its width
+// squared in sweeps to settle exactly at every step; the budget bounds a step's cost and lets
+// the slope settle over the next steps.
+constexpr int kMaxSweeps = 16;
+// A neighbouring pair may exceed the repose slope by this much [m] before material moves (1 um:
+// a thousandth of a 1 mm grain).
+constexpr f64 kSlopeSlack = 1e-6;
+// Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per mjData.
+constexpr i64 kMaxVertices = 2000000;
+// Slots of soil_stats: updates, volume excavated [m^3], volume that found no rim [m^3], updates
+// whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring.
+enum SoilStat {
+  kStatUpdates, kStatExcavated, kStatUnplaced, kStatUnrelaxed, kStatRasterised, kStatEdge
+};
+static_assert(kStatEdge + 1 == kNSoilStats, "soil_stats slots");
+// owner's value for a vertex waiting in the relaxation's queue (deposition is done by then, and
+// Finish clears the owners).
+constexpr i64 kQueued = -2;
+
+// Grows box (4) to cover vertex rows r0..r1 and columns c0..c1 (nothing if r0 > r1 or c0 > c1).
+void Union(f64* box, f64 r0, f64 r1, f64 c0, f64 c1);
+
+// Rasterises the downward-facing triangles start..stop of intruder k onto the grid. vert
+// (n x 9): each triangle's three vertices, body frame [m], counter-clockwise seen from outside;
+// rot (3 x 3) body -> world, pos (3) body origin [m]. floor takes, at each vertex under a
+// triangle lower than it, the triangle's height there, and owner the intruder's index k; box
+// grows to cover those vertices. Triangles whose lowest corner is at or above top [m] are
+// skipped. Returns the triangles rasterised.
+int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot,
+              const f64* pos, i64 k, f64* floor, i64* owner, f64* box, f64 top);
+
+// What Excavate cut: volume [m^3] (-1: a floor lies below the medium's bottom, 0: nothing),
+// the (x, y) of its centroid [m] and the velocity v (3) [m/s] of the intruder's point there.
+struct Cut {
+  f64 vol, mx, my;
+  f64 v[3];
+};
+
+// Cuts intruder k's occupied columns (owner == k, inside box) down to their floor. The floor
+// becomes the compacted level, remembering as its depth reference the larger of the surface h
+// and the old c + p. twist (9): the intruder's velocity [m/s] at a point moving with it, its
+// angular velocity [rad/s], that point [m]; world frame. zlo [m]: the medium's bottom. Columns
+// on the edge ring are counted (kStatEdge), never cut.
+Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+             const f64* box, i64 k, const f64* twist, f64 zlo, f64* stats);
+
+// Spreads volume vol [m^3] of intruder k over the rim of its footprint (the vertices next to
+// those it presses on, inside box grown by one vertex, with no intruder over them; failing
+// those, the ones under an intruder but free of contact), weighted towards the horizontal
+// direction of v (3) [m/s] from the footprint's centre (mx, my) [m]: weight (1 - s) +
+// 2 s max(0, cos), s = |v_xy| / (|v_xy| + |v_z|), so a vertical intrusion raises an even rim
+// and a horizontal one piles ahead. Loose material: h grows, c and p stay. What finds no rim
+// is counted (kStatUnplaced). work (nrow * ncol, the relaxation's queue, free until then)
+// holds the rim's weights as doubles while they are summed and spent.
+void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats,
+             i64* work);
+
+// Relaxes the surface from the vertices of box until no pair of free neighbouring vertices is
+// steeper than the angle of repose, or the work budget is spent; returns true if it converged.
+//
+// One sweep over the box, then a queue (first in, first out) of the vertices that moved: a
+// vertex taken from it is settled against its eight neighbours, and every vertex that moved
+// (it, and each neighbour it gave to or took from) joins the queue again, so the work follows
+// the material, wherever the box's corners are (three legs far apart cost three footprints, not
+// the box spanning them). A pair of which neither vertex moved since it was in repose is still
+// in repose. The budget is the pair visits of kMaxSweeps sweeps of the box. On return box holds
+// the queue's bounding box if it did not empty (the slopes left unrelaxed), and seen (4) has
+// grown over every vertex visited. mark (nrow x ncol): owner, which marks the waiting vertices
+// kQueued (and is cleared by Finish); queue (nrow * ncol): work space for the queue. A vertex
+// an intruder presses on neither gives nor takes (the gap under a hovering one fills up to its
+// floor).
+bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
+           f64* box, f64* seen, f64* stats);
+
+// Closes an update: raises the ceiling (soil[kSoilZoff]) over box, clears floor and owner there
+// (and one vertex around it), and records the time [s] of the configuration followed.
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
+            f64 time);
+
+}  // namespace mjrft::soil
+
+#endif  // MJRFT_ENGINE_SOIL_H_
