@@ -13,9 +13,9 @@ import mujoco
 import numpy as np
 import pytest
 
-import mjrft
 from mjrft import simulate
 from mjrft.field import plugin
+from mjrft.field.numba_field import GranularField as NumbaField
 
 from golden_runs import MODELS, THROWN
 
@@ -28,16 +28,18 @@ STATE_ATOL = 1e-9
 
 def _lockstep(source: str, steps: int, *, integrator=None, n_triangles=None, prepare=None,
               each=None) -> dict:  # fmt: skip
-    numba_model = (
-        simulate.load_model(source) if source.endswith(".xml")
-        else mujoco.MjModel.from_xml_string(source)
-    )  # fmt: skip
+    if source.endswith(".xml"):
+        from mjrft.field.scene import load_model as load_plain  # userdata for the ground
+
+        numba_model = load_plain(source)
+    else:
+        numba_model = mujoco.MjModel.from_xml_string(source)
     plugin_model = plugin.load_model(source, n_triangles=n_triangles)
     worst = {"wrench": 0.0, "state": 0.0, "acting": 0}
     models = (numba_model, plugin_model)
     for m in models:
         simulate.configure(m, None, integrator)
-    field = mjrft.GranularField(numba_model, n_triangles=n_triangles)
+    field = NumbaField(numba_model, n_triangles=n_triangles)
     datas = [simulate.reset_data(m, 0) for m in models]
     if prepare is not None:
         for d in datas:
