@@ -159,8 +159,10 @@ def numba_body_wrench(el, start, stop, co, ay, zeta, prm, grid, use_region, regi
     wrench = np.zeros(6)
     force = np.full((n, 3), 7.0)
     rws = np.full((n, kernel.ROW), 7.0) if rows else np.empty((0, kernel.ROW))
-    count = kernel.body_wrench(*el, start, stop, co, ay, zeta, prm, grid, use_region, region,
-                               soil, rot, pos, omega, v_ref, p_ref, com, wrench, force, rws)  # fmt: skip
+    count = kernel.body_wrench(
+        *el, start, stop, co, ay, zeta, prm, grid, use_region, region, soil,
+        rot, pos, omega, v_ref, p_ref, com, wrench, force, rws,
+    )  # fmt: skip
     return count, wrench, force, (rws if rows else None)
 
 
@@ -352,8 +354,10 @@ def test_trajectory_equals_numba(lib, material):
     got = np.full((T, 6), 7.0)
     kernel.trajectory(*el, co, mat.alpha_y0, mat.zeta, 0.001, rot, pos, lin_vel, ang_vel, point,
                       ref)  # fmt: skip
-    lib.mjrft_trajectory(*map(ptr, el), 1500, ptr(co), len(co), mat.alpha_y0, mat.zeta, 0.001,
-                         ptr(rot), ptr(pos), ptr(lin_vel), ptr(ang_vel), ptr(point), T, ptr(got))  # fmt: skip
+    lib.mjrft_trajectory(
+        *map(ptr, el), 1500, ptr(co), len(co), mat.alpha_y0, mat.zeta, 0.001,
+        ptr(rot), ptr(pos), ptr(lin_vel), ptr(ang_vel), ptr(point), T, ptr(got),
+    )  # fmt: skip
     np.testing.assert_array_equal(got, ref)
     assert np.count_nonzero(ref[:, 2]) > T // 3
 
@@ -427,3 +431,35 @@ def test_pure_wrenches_on_a_rig(lib):
         if step % 100 == 99:
             acting += _pure_wrenches_pair(lib, fld, m, d)
     assert acting > 0
+
+
+FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
+<numeric name="mjrft:deform_cell" data="0.004"/>
+<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="600"/></tuple></custom>
+<worldbody><body name="foot" pos="0.003 -0.002 0.004" euler="12 -8 20">
+<joint name="z" type="slide" axis="0 0 1"/><joint name="x" type="slide" axis="1 0 0"/>
+<geom name="foot" type="ellipsoid" size="0.02 0.015 0.008" mass="1"/></body></worldbody>
+<actuator><position joint="z" kp="1e5" kv="2000"/><position joint="x" kp="1e5" kv="2000"/>
+</actuator></mujoco>"""
+
+
+def test_pure_wrenches_on_deforming_ground(lib):
+    """A tilted foot pressed into the deforming ground and dragged sideways (installed steps,
+    so the soil block deforms): PureWrenches reads the bridge's copy of the soil block, numba
+    the MjData's userdata, at states along the run."""
+    m = mjrft.load_model(mujoco.MjSpec.from_string(FOOT))
+    fld = GranularField(m)
+    assert fld._tables.arrays.surface_prm[surface.KIND] == surface.SOIL
+    d = mujoco.MjData(m)
+    acting = 0
+    with fld.installed():
+        for i, (z, x) in enumerate([(-0.004, 0.0), (-0.008, 0.004), (-0.006, 0.012)] * 2):
+            d.ctrl[:] = z, x
+            for _ in range(15):
+                mujoco.mj_step(m, d)
+            st = fld._states.of(d)
+            assert np.any(st.userdata[surface.SOIL_HEAD :] != 0.0) or i == 0
+            acting += _pure_wrenches_pair(lib, fld, m, d)
+    assert acting > 100
