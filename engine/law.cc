@@ -180,25 +180,32 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
 }
 
 void EvaluateAgarwal(Buf& buf, int k, const f64* p) {
+  const f64* __restrict bnx = buf[kNx];
+  const f64* __restrict bny = buf[kNx + 1];
+  const f64* __restrict bnz = buf[kNx + 2];
+  const f64* __restrict bwx = buf[kWx];
+  const f64* __restrict bwy = buf[kWx + 1];
+  const f64* __restrict bwz = buf[kWx + 2];
+  const f64* __restrict bda = buf[kDepthArea];
+  f64* __restrict fx = buf[kFx];
+  f64* __restrict fy = buf[kFx + 1];
+  f64* __restrict fz = buf[kFx + 2];
   f64 xi = p[kAgarwalXi], mu = p[kAgarwalMu];
-  const f64* c1 = p + kAgarwalCoef0;
-  const f64* c2 = c1 + kAgarwalTerms;
-  const f64* c3 = c2 + kAgarwalTerms;
+  f64 c[3 * kAgarwalTerms];
+  for (int i = 0; i < 3 * kAgarwalTerms; i++) c[i] = p[kAgarwalCoef0 + i];
+  // Branch-free (each choice a select between values computed either way, as the reference's
+  // branches compute them), so the loop vectorises.
+#pragma GCC ivdep
   for (int j = 0; j < k; j++) {
-    f64 nx = buf[kNx][j], ny = buf[kNx + 1][j], nz = buf[kNx + 2][j];
-    f64 wx = buf[kWx][j], wy = buf[kWx + 1][j], wz = buf[kWx + 2][j];
+    f64 nx = bnx[j], ny = bny[j], nz = bnz[j];
+    f64 wx = bwx[j], wy = bwy[j], wz = bwz[j];
     f64 inv = 1.0 / std::sqrt(wx * wx + wy * wy + wz * wz);
     f64 vx = wx * inv, vy = wy * inv, vz = wz * inv;
     f64 vh = std::sqrt(vx * vx + vy * vy), nh = std::sqrt(nx * nx + ny * ny);  // unit vectors
     // The local frame: r the horizontal direction of v, or of n when v is vertical, or world x.
-    f64 rx = 1.0, ry = 0.0;
-    if (vh > kAgarwalHorizontalEps) {
-      rx = vx / vh;
-      ry = vy / vh;
-    } else if (nh > kAgarwalHorizontalEps) {
-      rx = nx / nh;
-      ry = ny / nh;
-    }
+    bool by_v = vh > kAgarwalHorizontalEps, by_n = nh > kAgarwalHorizontalEps;
+    f64 rx = by_v ? vx / vh : (by_n ? nx / nh : 1.0);
+    f64 ry = by_v ? vy / vh : (by_n ? ny / nh : 0.0);
     f64 tx = -ry, ty = rx;  // theta = z x r
     // The angles' sines and cosines from components (no trigonometric calls): beta = -+acos(nz)
     // or +-(pi - acos(nz)) by the signs of n . r and nz, so cos beta = |nz| and |sin beta| =
@@ -209,34 +216,31 @@ void EvaluateAgarwal(Buf& buf, int k, const f64* p) {
     f64 sb = (nr >= 0.0) == (nz >= 0.0) ? -nh : nh;
     f64 cg = vx * rx + vy * ry;
     f64 sg = std::sqrt(Max(0.0, 1.0 - cg * cg));
-    if (vz > 0.0) sg = -sg;
-    f64 cp = 1.0, sp = 0.0;
-    if (nh > kAgarwalHorizontalEps && nr != 0.0) {
-      f64 inv_h = 1.0 / std::sqrt(nr * nr + nt * nt);
-      cp = std::fabs(nr) * inv_h;
-      sp = nr > 0.0 ? nt * inv_h : -nt * inv_h;  // tan psi cos psi
-    }
+    sg = vz > 0.0 ? -sg : sg;
+    bool tilted = by_n && nr != 0.0;
+    f64 inv_h = 1.0 / std::sqrt(nr * nr + nt * nt);
+    f64 cp = tilted ? std::fabs(nr) * inv_h : 1.0;
+    f64 sp = tilted ? (nr > 0.0 ? nt * inv_h : -nt * inv_h) : 0.0;  // tan psi cos psi
     f64 x1 = sg, x2 = cb, x3 = cp * cg * sb + sg * cb;
-    f64 f1 = Cubic(c1, x1, x2, x3);
-    f64 f2 = Cubic(c2, x1, x2, x3);
-    f64 f3 = Cubic(c3, x1, x2, x3);
+    f64 f1 = Cubic(c, x1, x2, x3);
+    f64 f2 = Cubic(c + kAgarwalTerms, x1, x2, x3);
+    f64 f3 = Cubic(c + 2 * kAgarwalTerms, x1, x2, x3);
     f64 ar = f1 * sb * cp + f2 * cg;
     f64 at = f1 * sb * sp;
     f64 gx = ar * rx + at * tx, gy = ar * ry + at * ty, gz = -f1 * cb - f2 * sg - f3;
     f64 an = -(gx * nx + gy * ny + gz * nz);  // alpha . (-n)
     f64 ux = gx + an * nx, uy = gy + an * ny, uz = gz + an * nz;  // tangential part
-    if (ux * vx + uy * vy + uz * vz > 0.0) {  // turned to oppose the motion
-      ux = -ux;
-      uy = -uy;
-      uz = -uz;
-    }
+    bool turn = ux * vx + uy * vy + uz * vz > 0.0;  // turned to oppose the motion
+    ux = turn ? -ux : ux;
+    uy = turn ? -uy : uy;
+    uz = turn ? -uz : uz;
     f64 mag_n = std::fabs(an), mag_t = std::sqrt(ux * ux + uy * uy + uz * uz);
     // mu_surf caps the tangential part at mu_surf |alpha_n| (intruder-medium friction).
     f64 cap = mu * mag_n >= mag_t ? 1.0 : mu * mag_n / mag_t;
-    f64 s = xi * buf[kDepthArea][j];
-    buf[kFx][j] = s * (-mag_n * nx + cap * ux);
-    buf[kFx + 1][j] = s * (-mag_n * ny + cap * uy);
-    buf[kFx + 2][j] = s * (-mag_n * nz + cap * uz);
+    f64 s = xi * bda[j];
+    fx[j] = s * (-mag_n * nx + cap * ux);
+    fy[j] = s * (-mag_n * ny + cap * uy);
+    fz[j] = s * (-mag_n * nz + cap * uz);
   }
 }
 
