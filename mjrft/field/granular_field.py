@@ -393,6 +393,8 @@ def _check_tables(model: mujoco.MjModel, tables: dict, given: dict) -> None:
     for name, want in plugin.numerics(tables).items():
         i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_NUMERIC, plugin.PREFIX + name)
         have = model.numeric(i).data if i >= 0 else None
+        if want.size == 0:  # MuJoCo stores an empty numeric field as one 0
+            want = np.zeros(1)
         if have is None or have.shape != want.shape or not np.array_equal(have, want):
             how = (
                 f"the options given ({', '.join(sorted(given))})" if given

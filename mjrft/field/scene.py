@@ -100,6 +100,11 @@ SUPPORTED_GEOM_TYPES = {
 }
 
 
+#: Prefix of the custom numeric fields that carry the engine plugin's tables
+#: (``mjrft.field.plugin``); the scene reader leaves them alone.
+ENGINE_PREFIX = "mjrft.granular:"
+
+
 class SceneError(ValueError):
     """The MJCF scene description is invalid; the message names the element at fault."""
 
@@ -172,6 +177,8 @@ def _custom(model: mujoco.MjModel) -> dict[str, tuple[str, int]]:
     for kind, objtype, n in sources:
         for i in range(n):
             name = mujoco.mj_id2name(model, objtype, i) or ""
+            if name.startswith(ENGINE_PREFIX):  # the engine's tables (mjrft.field.plugin)
+                continue
             if not name.startswith(PREFIX):
                 _refuse_misspelt_prefix(kind, name)
                 continue
