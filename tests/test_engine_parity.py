@@ -29,7 +29,7 @@ STATE_ATOL = 1e-9
 def _lockstep(source: str, steps: int, *, integrator=None, n_triangles=None, prepare=None,
               each=None) -> dict:  # fmt: skip
     if source.endswith(".xml"):
-        from mjrft.field.scene import load_model as load_plain  # userdata for the ground
+        from mjrft.field.numba_field import load_plain  # userdata for the ground
 
         numba_model = load_plain(source)
     else:

@@ -49,17 +49,15 @@ def resolve_model(name: str | os.PathLike) -> Path:
     raise ValueError(f"no MJCF file {str(name)!r} and no shipped model of that name ({names})")
 
 
-def load_model(
-    path: str | os.PathLike, *, deform_cell: float | None = None, repose: float | None = None
-) -> mujoco.MjModel:
-    """Compile an MJCF file (or a shipped model by name, ``resolve_model``), with an error that
-    names the file; userdata is sized for its deforming ground (``mjrft.load_model``: cell [m],
-    0 off, and angle of repose [deg] override the model's)."""
-    from mjrft.field.scene import load_model as load_scene
+def load_model(path: str | os.PathLike, **options) -> mujoco.MjModel:
+    """Compile an MJCF file (or a shipped model by name, ``resolve_model``) with the engine
+    plugin (``mjrft.load_model``; options: ``mjrft.SceneOptions`` fields, e.g. deform_cell [m],
+    0 off, repose [deg]), with an error that names the file."""
+    from mjrft.field.plugin import load_model as load_with_engine
 
     path = resolve_model(path)
     try:
-        return load_scene(str(path), deform_cell=deform_cell, repose=repose)
+        return load_with_engine(str(path), **options)
     except (ValueError, FileNotFoundError) as exc:
         raise ValueError(f"cannot load MJCF model {str(path)!r}: {exc}") from exc
 

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from mjrft.field.granular_field import GranularField
-from mjrft.field.scene import load_model
+from mjrft.field.plugin import load_model
 
 MODEL = Path(__file__).resolve().parents[2] / "models" / "wheel_rig.xml"
 #: Wheel radius [m] (geom "wheel" of models/wheel_rig.xml).

@@ -38,11 +38,42 @@ from mjrft.field.model import (
     free_rigid,
     mechanism_body,
 )
+from mjrft.core import soil as _soil
+from mjrft.field import scene as _scene
 from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.field.signals import HeldSignals
 from mjrft.field.soil_view import Soil
 from mjrft.field.state import DataState, States, soil_block
 from mjrft.field.tables import STATS
+
+
+def load_plain(
+    source: str | mujoco.MjSpec, *, deform_cell: float | None = None, repose: float | None = None
+) -> mujoco.MjModel:
+    """Compile an MJCF file path (or an MjSpec) with room in ``userdata`` for its deforming
+    ground: ``<size nuserdata>`` grows to what mjrft:deform_cell (or deform_cell [m], which
+    also sets or overrides it, 0 switching it off; repose [deg] likewise mjrft:repose) needs."""
+    spec = source if isinstance(source, mujoco.MjSpec) else mujoco.MjSpec.from_file(str(source))
+    for key, value in (("deform_cell", deform_cell), ("repose", repose)):
+        if value is not None:
+            found = [n for n in spec.numerics if n.name == "mjrft:" + key]
+            if found:
+                found[0].data = [float(value)]
+            else:
+                spec.add_numeric(name="mjrft:" + key, data=[float(value)])
+    model = spec.compile()
+    custom = _scene._custom(model)
+    cell = _scene._numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
+    region = _scene._region(model, custom)
+    if cell is None or float(cell[0]) <= 0.0 or region is None:
+        return model
+    nrow, ncol = _soil.grid_shape(region, float(cell[0]))
+    need = surface.soil_block(nrow, ncol)
+    if model.nuserdata >= need or nrow * ncol > _soil.MAX_VERTICES:  # the field names the cap
+        return model
+    spec.nuserdata = need
+    return spec.compile()
+
 
 
 @dataclass(frozen=True)

@@ -117,27 +117,28 @@ def add_granular(
 
 
 def load_model(
-    path_or_xml: str | os.PathLike, options: SceneOptions | None = None, **overrides
+    source: str | os.PathLike | mujoco.MjSpec, options: SceneOptions | None = None, **overrides
 ) -> mujoco.MjModel:
-    """A compiled model carrying the engine plugin, from an MJCF file or string whose
-    ``<custom>`` has an ``mjrft:`` section (docs/mjcf.md). options, overrides: SceneOptions
-    (material, n_triangles, tolerance, low_speed, stick_reach, deform_cell, repose,
-    deform_every, dynamic) on top of the MJCF's values.
+    """A compiled model carrying the engine plugin, from an MJCF file, an MJCF string or an
+    MjSpec (changed in place) whose ``<custom>`` has an ``mjrft:`` section (docs/mjcf.md).
 
+    options, overrides: SceneOptions (material, n_triangles, tolerance, low_speed, stick_reach,
+    deform_cell, repose, deform_every, dynamic) on top of the MJCF's values.
     Raises SceneError (a ValueError) naming the geom or field at fault, or ValueError naming the
     file MuJoCo could not read.
     """
     library()
     options = SceneOptions.of(options, **overrides)
-    text = os.fspath(path_or_xml)
-    try:
-        if isinstance(path_or_xml, os.PathLike) or not text.lstrip().startswith("<"):
-            spec = mujoco.MjSpec.from_file(text)
-        else:
-            spec = mujoco.MjSpec.from_string(text)
-    except ValueError as exc:
-        source = "the MJCF string" if text.lstrip().startswith("<") else repr(text)
-        raise ValueError(f"cannot load MJCF model {source}: {exc}") from exc
+    if isinstance(source, mujoco.MjSpec):
+        spec = source
+    else:
+        text = os.fspath(source)
+        is_xml = not isinstance(source, os.PathLike) and text.lstrip().startswith("<")
+        try:
+            spec = mujoco.MjSpec.from_string(text) if is_xml else mujoco.MjSpec.from_file(text)
+        except ValueError as exc:
+            where = "the MJCF string" if is_xml else repr(text)
+            raise ValueError(f"cannot load MJCF model {where}: {exc}") from exc
     add_granular(spec, options=options)
     model = spec.compile()
     _options[model] = options

@@ -457,34 +457,6 @@ def _hfield_surface(model, name: str, region) -> Surface:
     return out
 
 
-def load_model(
-    source: str | mujoco.MjSpec, *, deform_cell: float | None = None, repose: float | None = None
-) -> mujoco.MjModel:
-    """Compile an MJCF file path (or an MjSpec) with room in ``userdata`` for its deforming
-    ground: ``<size nuserdata>`` grows to what mjrft:deform_cell (or deform_cell [m], which
-    also sets or overrides it, 0 switching it off; repose [deg] likewise mjrft:repose) needs."""
-    spec = source if isinstance(source, mujoco.MjSpec) else mujoco.MjSpec.from_file(str(source))
-    for key, value in (("deform_cell", deform_cell), ("repose", repose)):
-        if value is not None:
-            found = [n for n in spec.numerics if n.name == PREFIX + key]
-            if found:
-                found[0].data = [float(value)]
-            else:
-                spec.add_numeric(name=PREFIX + key, data=[float(value)])
-    model = spec.compile()
-    custom = _custom(model)
-    cell = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
-    region = _region(model, custom)
-    if cell is None or float(cell[0]) <= 0.0 or region is None:
-        return model
-    nrow, ncol = soil.grid_shape(region, float(cell[0]))
-    need = surface_mod.soil_block(nrow, ncol)
-    if model.nuserdata >= need or nrow * ncol > soil.MAX_VERTICES:  # the field names the cap
-        return model
-    spec.nuserdata = need
-    return spec.compile()
-
-
 def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Material:
     """The material under the force model mjrft:model names (``material.MODELS``; default
     treers2021), with mjrft:mu_surf for agarwal3d."""
@@ -526,7 +498,7 @@ def _deforming(model, custom, initial: Surface, region, material, options) -> Su
     """The deforming ground over the region if mjrft:deform_cell (or the cell of options, the
     overrides (cell [m], repose [deg], every [steps]), None where not given) asks for it, else
     the initial surface; checks the cell, the grid's size, the angle of repose, the update
-    period and that the MjModel has userdata for it."""
+    period."""
     cell, repose, every = options
     where = f"<numeric name='{PREFIX}deform_cell'>" if cell is None else "deform_cell"
     if cell is None:
@@ -563,14 +535,6 @@ def _deforming(model, custom, initial: Surface, region, material, options) -> Su
         raise SceneError(
             f"deform_every = {every!r} ({PREFIX}deform_every): expected a whole number of steps "
             ">= 1 between updates of the ground (1: every step)"
-        )
-    need = surface_mod.soil_block(nrow, ncol)
-    if model.nuserdata < need:
-        raise SceneError(
-            f"{where} = {cell:g} m: the ground's {nrow} x {ncol} grid keeps its state in the "
-            f"MjData's userdata and needs {need} entries, the model has {model.nuserdata}: add "
-            f'<size nuserdata="{need}"/> to the MJCF (or load it with '
-            "mjrft.load_model, which sizes it)"
         )
     return soil.grid_over(initial, region, cell, repose, int(every))
 

@@ -18,7 +18,7 @@ import numpy as np
 import warp as wp
 
 from mjrft.envs.hexapod_sand import HIP_QPOS, HIP_QVEL, MAX_FREQUENCY, MAX_PHASE_RATE, TRIPOD_B
-from mjrft.field.scene import load_model
+from mjrft.field.plugin import load_model
 from mjrft.warp import surface
 from mjrft.warp.field import WarpField
 from mjrft.warp.surface import Surface
