@@ -54,6 +54,43 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
                const f64* rot, const f64* pos, const f64* omega, const f64* v_ref,
                const f64* p_ref, const f64* com, f64* wrench, f64* elem_force, f64* rows);
 
+// Sets out (n, 3) to the forces [N] on n elements given in the world frame: centroids pos
+// (n, 3) [m], unit normals n_hat (n, 3), areas (n,) [m^2], velocities vel (n, 3) [m/s], under
+// the flat surface at height surface_z [m] (one-point rule). co (ncoef,): Medium's coef.
+// Returns #acting (elements with a nonzero force).
+int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i64 n,
+           const f64* co, i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, f64* out);
+
+// A normal counts as unit if | |n|^2 - 1 | is below this (a few ulp: what normalising gives).
+constexpr f64 kUnitNormalSlack = 4.0 * 2.220446049250313e-16;
+
+// Flags of n elements' inputs (Forces' arrays, C-contiguous): *bad, any non-finite input or
+// negative area; *nonunit, any normal not of unit length (kUnitNormalSlack). Branch-free and
+// vectorised: about 1 ns per element.
+void InputFlags(const f64* pos, const f64* normal, const f64* area, const f64* vel, i64 n,
+                bool* bad, bool* nonunit);
+
+// Codes of CheckedUnitNormals: which input of an element is bad.
+enum InputCode { kInputOk, kBadPos, kBadNormal, kBadArea, kBadVel, kNegativeArea, kZeroNormal };
+
+// Checks every element's inputs and writes its unit normal into n_hat (n, 3). Returns kInputOk
+// (*index = -1) or the code of the first bad element (its index in *index): a non-finite
+// position, normal, area or velocity, a negative area, or a zero-length normal. A normal
+// already unit (within kUnitNormalSlack, as InputFlags tests) is copied unchanged, so an
+// element's force does not depend on the other elements of the call; others are scaled by
+// their largest component before they are normalised, so no finite normal overflows or
+// underflows.
+int CheckedUnitNormals(const f64* pos, const f64* normal, const f64* area, const f64* vel,
+                       i64 n, f64* n_hat, i64* index);
+
+// RFT wrenches of a body along a prescribed trajectory under the flat surface at surface_z
+// [m], no region: out (T, 6) = force [N], moment [N m] about point[t], world frame, for T
+// samples of rot (T, 9) body -> world (row-major), pos (T, 3) body origin [m], lin_vel (T, 3)
+// its velocity [m/s], ang_vel (T, 3) [rad/s]; the n elements e in the body frame (BodyWrench).
+void Trajectory(const Elements& e, i64 n, const f64* co, i64 ncoef, f64 alpha_y, f64 zeta,
+                f64 surface_z, const f64* rot, const f64* pos, const f64* lin_vel,
+                const f64* ang_vel, const f64* point, i64 T, f64* out);
+
 }  // namespace mjrft::kernel
 
 #endif  // MJRFT_ENGINE_KERNEL_H_

@@ -1,0 +1,145 @@
+// Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
+//
+// The RFT element law on gathered elements (mjrft.core.kernel, mjrft.core.agarwal): the force
+// per element of a chunk whose elements were written, structure of arrays, into the rows of a
+// scratch buffer (Gather). Two force models, told apart by the length of their coefficients:
+// Treers, Cao & Stuart 2021 (the 18 combined Fourier coefficients of Li 2013's media,
+// docs/design.md section 2) and the 3D-RFT of Agarwal, Goldman & Kamrin 2023 (kAgarwalSize
+// parameters); either may carry the dynamic (inertial) term's lambda rho_c as one extra
+// coefficient, last.
+//
+// EvaluateTreers is one branch-free loop the compiler vectorises: beta and gamma are never
+// formed (their sines and cosines are normalised vector components), the Fourier sums follow by
+// angle addition, and tanh / atanh of f1 / f23 come from exp and log polynomials on their
+// bounded arguments (libm's exp and log are scalar calls). Per element: 3 square roots and 2
+// divisions, the rest multiply-adds. Every multiply-add that the reference fuses is std::fma
+// here, and no other is fused (-ffp-contract=off), so results equal the numba kernel's bit for
+// bit.
+
+#ifndef MJRFT_ENGINE_LAW_H_
+#define MJRFT_ENGINE_LAW_H_
+
+#include <cmath>
+
+#include "tables.h"
+
+namespace mjrft::law {
+
+// Elements per chunk: the scratch rows stay in L1 cache.
+constexpr int kChunk = 256;
+
+// Rows of the scratch buffer (f64[kBufRows][kChunk]): the law's inputs 0-8, written by Gather:
+// unit normal n (3); horizontal direction h of the frame's e2, unnormalised (2); velocity w, any
+// scale with |w|^2 in [kW2Min, kW2Max] (3); depth x area [m^3]. Its outputs 9-11: force [N].
+// Then the kernel's own: point [m] (3) and the acting area [m^2] (for the dynamic term). World
+// frame.
+enum Row { kNx = 0, kHx = 3, kWx = 5, kDepthArea = 8, kFx = 9, kPx = 12, kArea = 15 };
+constexpr int kBufRows = 16;
+using Buf = f64[kBufRows][kChunk];
+
+// |n_z| at or above this marks a nearly horizontal plate (docs/design.md 2.2): its frame comes
+// from the velocity.
+constexpr f64 kHorizontalPlateNz = 1.0 - 1.0e-3;
+// Fitted scaling functions of the 3D decomposition (Treers et al. 2021, docs/design.md 2.7),
+// f1 = gain (tanh(slope |v1| - shift) + tanh(shift)) / norm, f23 likewise with atanh.
+constexpr f64 kF1Gain = 0.440850096954369, kF1Slope = 3.62263982880971,
+              kF1Shift = 1.60910808139526, kF1Norm = 0.832324700111401;
+constexpr f64 kF23Gain = 1.99392673405210, kF23Slope = 1.61146827229181,
+              kF23Shift = 0.973746396532650, kF23Norm = 5.81083560370960;
+// Velocities are rescaled in Gather when |w|^2 leaves this range, so that the products of up to
+// three speed-scaled factors in EvaluateTreers neither overflow nor underflow.
+constexpr f64 kW2Min = 1e-60, kW2Max = 1e60;
+// Length of the Treers model's coefficients (Material.kernel_coefficients).
+constexpr int kNCombined = 18;
+// Agarwal's model: parameter vector xi_n [N/m^3], mu_surf, then the cubics C1, C2, C3 (20
+// monomials each); a unit vector's horizontal part shorter than kAgarwalHorizontalEps counts as
+// none (the source's threshold).
+constexpr int kAgarwalXi = 0, kAgarwalMu = 1, kAgarwalCoef0 = 2, kAgarwalTerms = 20;
+constexpr int kAgarwalSize = kAgarwalCoef0 + 3 * kAgarwalTerms;
+constexpr f64 kAgarwalHorizontalEps = 1e-10;
+
+// max(a, b) and min(a, b) as the reference's compiled Python evaluates them: b if b > a (b < a)
+// else a, so a NaN argument is treated alike.
+inline f64 Max(f64 a, f64 b) { return b > a ? b : a; }
+inline f64 Min(f64 a, f64 b) { return b < a ? b : a; }
+
+// Writes element i at slot k of the chunk (rows 0-8 of buf, idx); returns k + 1 if it acts
+// (depth > 0, inside, leading: n . w > 0), else k, so the slot is reused (branch-free
+// compaction). n: unit normal, w: velocity [m/s] (any scale), depth [m], area [m^2] (or depth 1
+// and the depth integral W [m^3] as area); world frame. The velocity is rescaled only when
+// |w|^2 leaves [kW2Min, kW2Max], and h is normalised here only for nearly horizontal plates
+// (rare), whose frame comes from the horizontal velocity, or world x if there is none.
+inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 wx, f64 wy,
+                  f64 wz, f64 depth, f64 area, bool inside) {
+  f64 s2 = wx * wx + wy * wy + wz * wz;
+  if (!(kW2Min <= s2 && s2 <= kW2Max)) {
+    f64 m = Max(Max(std::fabs(wx), std::fabs(wy)), std::fabs(wz));
+    if (m > 0.0) {
+      wx = wx / m;
+      wy = wy / m;
+      wz = wz / m;
+    }
+  }
+  f64 dot = nx * wx + ny * wy + nz * wz;  // <= 0: trailing, moving in the plate, or at rest
+  f64 hx = nx, hy = ny;
+  if (std::fabs(nz) >= kHorizontalPlateNz) {
+    f64 m = Max(std::fabs(wx), std::fabs(wy));
+    if (m == 0.0) {
+      hx = 1.0;
+      hy = 0.0;
+    } else {
+      hx = wx / m;
+      hy = wy / m;
+      f64 inv = 1.0 / std::sqrt(hx * hx + hy * hy);
+      hx = hx * inv;
+      hy = hy * inv;
+    }
+  }
+  buf[kNx][k] = nx;
+  buf[kNx + 1][k] = ny;
+  buf[kNx + 2][k] = nz;
+  buf[kHx][k] = hx;
+  buf[kHx + 1][k] = hy;
+  buf[kWx][k] = wx;
+  buf[kWx + 1][k] = wy;
+  buf[kWx + 2][k] = wz;
+  buf[kDepthArea][k] = depth * area;
+  idx[k] = i;
+  return k + ((depth > 0.0) & inside & (dot > 0.0));
+}
+
+// Forces (rows 9-11) on the k gathered elements of buf under Treers et al.'s law: co (18,) the
+// combined generic coefficients (az: co[0..8], ax: co[9..17]), ay the generic alpha_y, zeta
+// [N/m^3]. docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v.e1) e1 - f23 ax e2 + f23 az z].
+void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta);
+
+// Forces (rows 9-11) on the k gathered elements of buf under Agarwal et al.'s 3D-RFT
+// (mjrft.core.agarwal): p (kAgarwalSize,) its parameters. Every gathered element leads.
+void EvaluateAgarwal(Buf& buf, int k, const f64* p);
+
+// The force model the coefficients co (ncoef,) are for: Agarwal's (kAgarwalSize parameters, +1
+// with the dynamic term) or Treers' (kNCombined, +1).
+void EvaluateModel(Buf& buf, int k, const f64* co, i64 ncoef, f64 ay, f64 zeta);
+
+// lambda rho_c [kg/m^3] of the dynamic term the coefficients carry, 0 if none.
+inline f64 DynamicCoefficient(const f64* co, i64 ncoef) {
+  bool dyn = ncoef == kNCombined + 1 || ncoef == kAgarwalSize + 1;
+  return dyn ? co[ncoef - 1] : 0.0;
+}
+
+// Adds the dynamic RFT inertial term to the force (rows 9-11) of gathered element j:
+// -lambda rho_c (n.v)^2 A n on its acting part of area A [m^2], unit normal n (rows 0-2), moving
+// at v [m/s]; world frame. The momentum flux of the grains a leading face sets moving at its
+// normal speed (docs/models.md, "Dynamic RFT"): F.v = -lambda rho_c (n.v)^3 A <= 0.
+inline void Dynamic(Buf& buf, int j, f64 lam_rho, f64 area, f64 vx, f64 vy, f64 vz) {
+  f64 nx = buf[kNx][j], ny = buf[kNx + 1][j], nz = buf[kNx + 2][j];
+  f64 vn = Max(0.0, nx * vx + ny * vy + nz * vz);
+  f64 g = lam_rho * area * vn * vn;
+  buf[kFx][j] -= g * nx;
+  buf[kFx + 1][j] -= g * ny;
+  buf[kFx + 2][j] -= g * nz;
+}
+
+}  // namespace mjrft::law
+
+#endif  // MJRFT_ENGINE_LAW_H_
