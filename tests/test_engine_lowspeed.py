@@ -555,3 +555,42 @@ def test_random_states_every_decision(lib):
             mujoco.set_mjcb_passive(None)
         mirror.check()
         assert mirror.decisions == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP, lowspeed.IMPLICIT}
+
+
+def test_guard_stage_random_records(lib):
+    """guard_stage and begin_step on random records and wrenches of the two-body scene (the
+    scenes' guard rarely holds a body: here about half of the guarded bodies are held), passes
+    2-4, held and per-stage modes, one body without inertia (never guarded)."""
+    model = mujoco.MjModel.from_xml_string(RESTING.format(integrator="RK4"))
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.random.default_rng(1).normal(size=model.nv) * 0.1
+    mujoco.mj_forward(model, data)
+    fld = mjrft.GranularField(model)
+    st = fld._states.of(data)
+    s = st.arrays
+    bridge = eb.Bridge(fld, data)
+    m, d, t, sp = bridge.pointers(model, data)
+    mr, er = fld._tables.address, st.address
+    rng = np.random.default_rng(9)
+    held = 0
+    for i in range(400):
+        s.rk4[:] = rng.normal(size=s.rk4.shape) * 10.0 ** rng.uniform(-6, 0)
+        s.rk4[1] = float(2 + i % 3)
+        s.rk4[RK4_HEAD::RK4_BODY] = rng.choice([rk4.RK4_PER_STAGE, rk4.RK4_HOLD, rk4.RK4_FROZEN], 2)
+        s.wrench[:] = rng.normal(size=s.wrench.shape) * 10.0 ** rng.uniform(-6, 0)
+        s.user[:] = rng.normal(size=s.user.shape) * 1e-3
+        mass = model.body_mass[2]
+        model.body_mass[2] = 0.0 if i % 5 == 0 else mass  # no inertia: not guarded
+        for name in ("rk4", "wrench", "user"):
+            np.copyto(bridge.arrays[name], getattr(s, name))
+        got = lib.mjrft_test_guard_stage(m, d, t, sp)
+        want = rk4.guard_stage(mr, er)
+        held += want
+        assert got == want
+        np.testing.assert_array_equal(bridge.arrays["rk4"], s.rk4)
+        np.testing.assert_array_equal(bridge.arrays["wrench"], s.wrench)
+        lib.mjrft_test_begin_step(m, d, t, sp)
+        rk4.begin_step(mr, er)
+        np.testing.assert_array_equal(bridge.arrays["rk4"], s.rk4)
+        model.body_mass[2] = mass
+    assert 100 < held < 600
