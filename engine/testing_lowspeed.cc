@@ -50,6 +50,13 @@ MJRFT_API int mjrft_test_adds_no_energy(const f64* w, const f64* twist, const f6
   return mjrft::lowspeed::AddsNoEnergy(w, body, dt, semi != 0);
 }
 
+MJRFT_API mjrft::i64 mjrft_test_treat_body(const mjModel* m, const mjData* d,
+                                           const mjrft::Tables* t, mjrft::State* s, int k,
+                                           const f64* user, f64 dt, int semi, f64* w, f64* ab,
+                                           f64* tw) {
+  return mjrft::lowspeed::TreatBody(m, d, *t, *s, k, user, dt, semi != 0, w, ab, tw);
+}
+
 MJRFT_API void mjrft_test_treat_all(const mjModel* m, const mjData* d, const mjrft::Tables* t,
                                     mjrft::State* s, const f64* user) {
   mjrft::lowspeed::TreatAll(m, d, *t, *s, user);

@@ -50,6 +50,8 @@ def lib():
     lib.mjrft_test_world_inertia.argtypes = [P, P, P, P]
     lib.mjrft_test_adds_no_energy.argtypes = [P, P, P, D, P, P, D, ctypes.c_int]
     lib.mjrft_test_treat_all.argtypes = [P, P, P, P, P]
+    lib.mjrft_test_treat_body.restype = ctypes.c_int64
+    lib.mjrft_test_treat_body.argtypes = [P, P, P, P, ctypes.c_int, P, D, ctypes.c_int, P, P, P]
     lib.mjrft_test_stage_held.argtypes = [D, D, P]
     lib.mjrft_test_read_modes.argtypes = [P, P, P, P]
     lib.mjrft_test_write_modes.argtypes = [P, P, P, P, P]
@@ -115,7 +117,7 @@ def test_helpers_equal_numba_bit_for_bit(lib):
             ) == lowspeed.step_work(w, tw, end, other, mass, dt, semi)
             got = lib.mjrft_test_adds_no_energy(
                 ptr(w), ptr(tw), ptr(other), mass, ptr(iw), ptr(ii), dt, semi
-            )  # fmt: skip
+            )
             assert bool(got) == lowspeed.adds_no_energy(w, (tw, other, mass, iw, ii), dt, semi)
 
         mm = np.zeros((6, 6))
@@ -147,9 +149,7 @@ def test_stick_fraction_equals_numba_bit_for_bit(lib):
         n2 = lowspeed.m_dot(free, free, mass, iw)
         for semi in (False, True):
             want = lowspeed.stick_fraction(stick, tw, other, mass, n2, dt, semi)
-            got = lib.mjrft_test_stick_fraction(
-                ptr(stick), ptr(tw), ptr(other), mass, n2, dt, semi
-            )  # fmt: skip
+            got = lib.mjrft_test_stick_fraction(ptr(stick), ptr(tw), ptr(other), mass, n2, dt, semi)
             assert got == want or (math.isnan(got) and math.isnan(want))
             branches.add("full" if want == 1.0 else "part")
     assert branches == {"full", "part"}
@@ -190,7 +190,7 @@ def test_step_balance_and_record_rules_equal_numba(lib):
     for ntb in (1, 3, 7):
         bridge_t.ntbody = ntb
         rec = rng.normal(size=RK4_HEAD + RK4_BODY * ntb)
-        rec[RK4_HEAD :: RK4_BODY] = rng.integers(0, 3, size=ntb).astype(float)
+        rec[RK4_HEAD::RK4_BODY] = rng.integers(0, 3, size=ntb).astype(float)
         keep_c, frz_c = np.zeros(ntb, np.int64), np.zeros(ntb, np.int64)
         keep_n, frz_n = keep_c.copy(), frz_c.copy()
         lib.mjrft_test_read_modes(ctypes.byref(bridge_t), ptr(rec), ptr(keep_c), ptr(frz_c))
@@ -203,7 +203,7 @@ def test_step_balance_and_record_rules_equal_numba(lib):
         rec_c = rec.copy()
         lib.mjrft_test_write_modes(
             ctypes.byref(bridge_t), ptr(rec_c), ptr(decision), ptr(slow), ptr(frozen)
-        )  # fmt: skip
+        )
         rk4.write_modes(rec, decision, slow, frozen, lowspeed.IMPLICIT)
         np.testing.assert_array_equal(rec_c, rec)
 
@@ -229,8 +229,18 @@ class Mirror:
         self.fm = fld._tables.arrays
         assert not self.fm.soil  # the deforming ground's update is not mirrored here
         self.errors: list[str] = []
-        self.counts = {k: 0 for k in ("stage_held", "read_modes", "guard_stage", "treat_all",
-                                      "write_modes", "begin_step")}  # fmt: skip
+        self.counts = {
+            k: 0
+            for k in (
+                "stage_held",
+                "read_modes",
+                "guard_stage",
+                "treat_body",
+                "treat_all",
+                "write_modes",
+                "begin_step",
+            )
+        }
         self.decisions: set[int] = set()
         self.held = 0
 
@@ -245,9 +255,8 @@ class Mirror:
         for name in names:
             got, want = self.bridge.arrays[name], getattr(self.s, name)
             if not np.array_equal(got, want, equal_nan=True):
-                self.errors.append(
-                    f"{rule} at t={self.data.time!r}: s.{name} differs:\n C++ {got!r}\n numba {want!r}"
-                )
+                where = f"{rule} at t={self.data.time!r}"
+                self.errors.append(f"{where}: s.{name} differs:\n C++ {got!r}\n numba {want!r}")
         for what, got, want in extra:
             if got != want:
                 self.errors.append(f"{rule} at t={self.data.time!r}: {what} C++ {got} numba {want}")
@@ -257,7 +266,7 @@ class Mirror:
             return
         try:
             self.forward()
-        except Exception as e:  # noqa: BLE001  (reported after the run)
+        except Exception as e:  # reported after the run
             self.errors.append(f"exception in the pass: {e!r}")
 
     def forward(self) -> None:
@@ -281,8 +290,12 @@ class Mirror:
             self.same("stage_held", ("rk4",), [("held", got, held)])
             if held:
                 self.sync()
-                lib.mjrft_test_read_modes(t, ptr(bridge.arrays["rk4"]),
-                                          ptr(bridge.arrays["keep"]), ptr(bridge.arrays["frz"]))  # fmt: skip
+                lib.mjrft_test_read_modes(
+                    t,
+                    ptr(bridge.arrays["rk4"]),
+                    ptr(bridge.arrays["keep"]),
+                    ptr(bridge.arrays["frz"]),
+                )
                 rk4.read_modes(s.rk4, s.keep, s.frz)
                 self.same("read_modes", ("keep", "frz"))
         evaluated, acting = evaluate.pure_wrenches(mr, er)
@@ -305,17 +318,22 @@ class Mirror:
             s.decision[:] = lowspeed.PURE
             s.frozen[:] = 0.0
             if fm.treat:
+                self.treat_bodies()
                 self.sync()
                 lib.mjrft_test_treat_all(m, d, t, st, ptr(bridge.arrays["user"]))
                 lowspeed.treat_all(mr, er, s.user)
-                self.same("treat_all", ("wrench", "decision", "frozen", "slow", "stats",
-                                        "scratch"))  # fmt: skip
+                self.same("treat_all", ("wrench", "decision", "frozen", "slow", "stats", "scratch"))
                 self.decisions.update(int(x) for x in s.decision)
             if fm.mech:
                 mechanism.treat_mechanisms(mr, er)
             self.sync()
-            lib.mjrft_test_write_modes(t, ptr(bridge.arrays["rk4"]), ptr(bridge.arrays["decision"]),
-                                       ptr(bridge.arrays["slow"]), ptr(bridge.arrays["frozen"]))  # fmt: skip
+            lib.mjrft_test_write_modes(
+                t,
+                ptr(bridge.arrays["rk4"]),
+                ptr(bridge.arrays["decision"]),
+                ptr(bridge.arrays["slow"]),
+                ptr(bridge.arrays["frozen"]),
+            )
             rk4.write_modes(s.rk4, s.decision, s.slow, s.frozen, lowspeed.IMPLICIT)
             self.same("write_modes", ("rk4",))
             if fm.treat and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
@@ -324,6 +342,52 @@ class Mirror:
                 rk4.begin_step(mr, er)
                 self.same("begin_step", ("rk4",))
         ownership.write_rows(mr, er)
+
+    def treat_bodies(self) -> None:
+        """treat_body of each body treat_all treats, alone: its wrench, decision, twist and the
+        energy terms ab (which decide only through signs, so a difference in their rounding
+        would rarely show in treat_all's outputs). s.scratch is restored after."""
+        s, fm, model = self.s, self.fm, self.model
+        dt = model.opt.timestep
+        semi = model.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4
+        scratch = s.scratch.copy()
+        m, d, t, st = self.args
+        for k in range(len(fm.tbody_bodyid)):
+            b = int(fm.tbody_bodyid[k])
+            if not fm.tbody_treat[k] or not dt > 0.0 or not evaluate.in_play(self.mr, self.er, k):
+                continue
+            self.sync()
+            out = [np.zeros(6), np.zeros(2), np.zeros(6)]
+            want_w, want_ab, want_tw = s.wrench[b].copy(), out[1].copy(), out[2].copy()
+            got_w = want_w.copy()
+            got = self.lib.mjrft_test_treat_body(
+                m,
+                d,
+                t,
+                st,
+                k,
+                ptr(self.bridge.arrays["user"][b]),
+                dt,
+                semi,
+                ptr(got_w),
+                ptr(out[1]),
+                ptr(out[2]),
+            )
+            want = lowspeed.treat_body(
+                self.mr, self.er, k, s.user[b].copy(), dt, semi, want_w, want_ab, want_tw
+            )
+            self.counts["treat_body"] += 1
+            for what, g, w in (
+                ("decision", got, want),
+                ("wrench", got_w, want_w),
+                ("ab", out[1], want_ab),
+                ("twist", out[2], want_tw),
+            ):
+                if not np.array_equal(g, w):
+                    self.errors.append(
+                        f"treat_body {k} at t={self.data.time!r}: {what} C++ {g!r} numba {w!r}"
+                    )
+        s.scratch[:] = scratch
 
     def check(self) -> None:
         if self.errors:
@@ -378,8 +442,12 @@ THROWN = """
 
 def _thrown(integrator: str, lowered: bool = False, dt: float = 0.001):
     """tests/golden_runs.py's thrown and lowered ellipsoids: every decision on a free body."""
-    xml = THROWN.format(integrator=integrator, dt=dt, density=2500 if lowered else 8000,
-                        z=0.0125 if lowered else 0.004)  # fmt: skip
+    xml = THROWN.format(
+        integrator=integrator,
+        dt=dt,
+        density=2500 if lowered else 8000,
+        z=0.0125 if lowered else 0.004,
+    )
 
     def make():
         model = mujoco.MjModel.from_xml_string(xml)
@@ -486,5 +554,43 @@ def test_random_states_every_decision(lib):
         finally:
             mujoco.set_mjcb_passive(None)
         mirror.check()
-        assert mirror.decisions == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP,
-                                    lowspeed.IMPLICIT}  # fmt: skip
+        assert mirror.decisions == {lowspeed.PURE, lowspeed.STICK, lowspeed.SLIP, lowspeed.IMPLICIT}
+
+
+def test_guard_stage_random_records(lib):
+    """guard_stage and begin_step on random records and wrenches of the two-body scene (the
+    scenes' guard rarely holds a body: here about half of the guarded bodies are held), passes
+    2-4, held and per-stage modes, one body without inertia (never guarded)."""
+    model = mujoco.MjModel.from_xml_string(RESTING.format(integrator="RK4"))
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.random.default_rng(1).normal(size=model.nv) * 0.1
+    mujoco.mj_forward(model, data)
+    fld = mjrft.GranularField(model)
+    st = fld._states.of(data)
+    s = st.arrays
+    bridge = eb.Bridge(fld, data)
+    m, d, t, sp = bridge.pointers(model, data)
+    mr, er = fld._tables.address, st.address
+    rng = np.random.default_rng(9)
+    held = 0
+    for i in range(400):
+        s.rk4[:] = rng.normal(size=s.rk4.shape) * 10.0 ** rng.uniform(-6, 0)
+        s.rk4[1] = float(2 + i % 3)
+        s.rk4[RK4_HEAD::RK4_BODY] = rng.choice([rk4.RK4_PER_STAGE, rk4.RK4_HOLD, rk4.RK4_FROZEN], 2)
+        s.wrench[:] = rng.normal(size=s.wrench.shape) * 10.0 ** rng.uniform(-6, 0)
+        s.user[:] = rng.normal(size=s.user.shape) * 1e-3
+        mass = model.body_mass[2]
+        model.body_mass[2] = 0.0 if i % 5 == 0 else mass  # no inertia: not guarded
+        for name in ("rk4", "wrench", "user"):
+            np.copyto(bridge.arrays[name], getattr(s, name))
+        got = lib.mjrft_test_guard_stage(m, d, t, sp)
+        want = rk4.guard_stage(mr, er)
+        held += want
+        assert got == want
+        np.testing.assert_array_equal(bridge.arrays["rk4"], s.rk4)
+        np.testing.assert_array_equal(bridge.arrays["wrench"], s.wrench)
+        lib.mjrft_test_begin_step(m, d, t, sp)
+        rk4.begin_step(mr, er)
+        np.testing.assert_array_equal(bridge.arrays["rk4"], s.rk4)
+        model.body_mass[2] = mass
+    assert 100 < held < 600
