@@ -7,53 +7,16 @@
 #include <limits>
 
 #include "evaluate.h"
+#include "lowspeed.h"
 #include "surface.h"
 
 namespace mjrft::mechanism {
 namespace {
 
-// TODO(merge): lowspeed::kPure, kStick, kSlip, kRounding, MDot, WorldInertia, ComVelocity
-// (engine/lowspeed.h, branch lowspeed); private copies until it lands.
-
-// Decisions, per body and pass: the pure model, stuck (ends the step at rest), slipping on the
-// force of the free direction.
-constexpr i64 kPure = 0, kStick = 1, kSlip = 2;
-// Relative size below which an energy balance counts as zero (its terms cancel; ~300 eps).
-constexpr f64 kRounding = 64.0 * std::numeric_limits<f64>::epsilon();
-
-// <a, b>_M = m a_lin . b_lin + a_ang . Iw b_ang of two (6) twists (iw (3 x 3): world axes).
-f64 MDot(const f64* a, const f64* b, f64 mass, const f64* iw) {
-  f64 s = mass * (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
-  for (int r = 0; r < 3; r++) {
-    for (int c = 0; c < 3; c++) s += a[3 + r] * iw[3 * r + c] * b[3 + c];
-  }
-  return s;
-}
-
-// iw (3 x 3) = the inertia about the CoM in world axes, X diag(I) X^T, from the inertial frame
-// x (3 x 3, ximat) and the principal moments (3) [kg m^2].
-void WorldInertia(const f64* x, const f64* inertia, f64* iw) {
-  for (int r = 0; r < 3; r++) {
-    for (int c = 0; c < 3; c++) {
-      f64 a = 0.0;
-      for (int q = 0; q < 3; q++) a += x[3 * r + q] * inertia[q] * x[3 * c + q];
-      iw[3 * r + c] = a;
-    }
-  }
-}
-
-// v (3) = world velocity [m/s] of tagged body k's CoM: cvel's linear part is at the subtree CoM
-// of the body's root (docs/design.md section 3).
-void ComVelocity(const mjData* d, const Tables& t, int k, f64* v) {
-  i64 b = t.tbody_bodyid[k];
-  const f64* om = d->cvel + 6 * b;
-  const f64* c0 = d->subtree_com + 3 * t.tbody_rootid[k];
-  const f64* x = d->xipos + 3 * b;
-  f64 rx = x[0] - c0[0], ry = x[1] - c0[1], rz = x[2] - c0[2];
-  v[0] = om[3] + om[1] * rz - om[2] * ry;
-  v[1] = om[4] + om[2] * rx - om[0] * rz;
-  v[2] = om[5] + om[0] * ry - om[1] * rx;
-}
+using lowspeed::kPure;
+using lowspeed::kRounding;
+using lowspeed::kSlip;
+using lowspeed::kStick;
 
 // Length of a row of s.mech_vec.
 int VecLen(const mjModel* m, const Tables& t) {
@@ -333,11 +296,11 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
     }
   }
   ChoSolve(s.mech_L, nv, nv, g);
-  f64 xi[6], dxi[6], pred[6], iw[9];
+  f64 xi[6], dxi[6], pred[6], iw[9], ii[9];
   for (int a = 0; a < n; a++) {
     i64 k = rows[a];
     i64 b = t.tbody_bodyid[k];
-    WorldInertia(d->ximat + 9 * b, m->body_inertia + 3 * b, iw);
+    lowspeed::WorldInertia(d->ximat + 9 * b, m->body_inertia + 3 * b, iw, ii);
     f64 mass = m->body_mass[b];
     for (int r = 0; r < 6; r++) {
       xi[r] = RowDot(s.mech_J, 6 * a + r, d->qvel, nv);
@@ -346,9 +309,9 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
       dxi[r] += dt * RowDot(s.mech_J, 6 * a + r, g, nv);
       pred[r] = xi[r] + t.reach * dxi[r];
     }
-    f64 n2 = MDot(xi, xi, mass, iw);
-    bool keeps = MDot(pred, xi, mass, iw) > 0.0;
-    bool fast = t.reach * t.reach * MDot(dxi, dxi, mass, iw) < n2;
+    f64 n2 = lowspeed::MDot(xi, xi, mass, iw);
+    bool keeps = lowspeed::MDot(pred, xi, mass, iw) > 0.0;
+    bool fast = t.reach * t.reach * lowspeed::MDot(dxi, dxi, mass, iw) < n2;
     if (!(keeps && fast)) code[k] = kStick;
   }
 }
@@ -456,7 +419,7 @@ int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
     i64 k = rows[worst];
     i64 b = t.tbody_bodyid[k];
     f64 v[3];
-    ComVelocity(d, t, k, v);
+    lowspeed::ComVelocity(d, t, k, v);
     f64 power = 0.0;
     for (int r = 0; r < 3; r++) power += slip[r] * v[r] + slip[3 + r] * d->cvel[6 * b + r];
     if (power > 0.0) {  // R would push along the present motion: the pure model instead

@@ -23,8 +23,9 @@ import numpy as np
 import pytest
 from engine_bridge import Bridge, library
 
-from mjrft.field import GranularField, lowspeed, mechanism, ownership, passive, rk4
+from mjrft.field import lowspeed, mechanism, ownership, passive, rk4
 from mjrft.field.evaluate import first_bad_body, pure_wrenches
+from mjrft.field.numba_field import GranularField  # the numba reference
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
