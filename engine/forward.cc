@@ -33,13 +33,15 @@ int FrozenWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s,
 
 // Components of tagged rows that differ from what was written were assigned by the user: they
 // become the user part (s.user) of that component (docs/field.md, "Who owns xfrc_applied").
+// "What was written" is the state's record (s.written, which copies of the mjData carry) or what
+// the last pass wrote into this very mjData (s.xfrc_last, which mj_setState does not rewind: a
+// state restored without xfrc_applied leaves the rows written after the snapshot in place).
 void TakeUserPart(const mjData* d, const Tables& t, State& s) {
   for (int k = 0; k < t.ntbody; k++) {
     i64 b = t.tbody_bodyid[k];
     for (int c = 0; c < 6; c++) {
-      if (d->xfrc_applied[6 * b + c] != s.written[6 * b + c]) {
-        s.user[6 * b + c] = d->xfrc_applied[6 * b + c];
-      }
+      f64 x = d->xfrc_applied[6 * b + c];
+      if (x != s.written[6 * b + c] && x != s.xfrc_last[6 * b + c]) s.user[6 * b + c] = x;
     }
   }
 }
@@ -53,6 +55,7 @@ void WriteRows(mjData* d, const Tables& t, State& s) {
       f64 total = s.keep[k] ? d->xfrc_applied[6 * b + c] : s.user[6 * b + c] + s.wrench[6 * b + c];
       d->xfrc_applied[6 * b + c] = total;
       s.written[6 * b + c] = total;
+      s.xfrc_last[6 * b + c] = total;
     }
   }
 }

@@ -283,6 +283,8 @@ void Instance::Reset(f64* plugin_state) {
     w.soil_floor[i] = INFINITY;
     w.soil_owner[i] = -1;
   }
+  // nothing written into this mjData yet: NaN equals no value a user can assign
+  for (i64 i = 0; i < 6 * sizes_.nbody; i++) w.xfrc_last[i] = NAN;
 }
 
 namespace {

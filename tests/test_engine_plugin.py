@@ -117,6 +117,29 @@ def test_rollout_threads_step_each_data_as_alone():
         np.testing.assert_array_equal(state[i], alone)
 
 
+def test_a_serial_rollout_reusing_one_data_steps_each_as_alone():
+    # mj_setState(FULLPHYSICS) rewinds the engine's record but not xfrc_applied: the rows the
+    # engine wrote at the end of one rollout must not turn into user forces of the next
+    from mujoco import rollout
+
+    model, _ = _thrown()
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial = np.zeros((3, mujoco.mj_stateSize(model, spec)))
+    for i in range(3):
+        d = mujoco.MjData(model)
+        d.qvel[:] = np.asarray(THROW) * (1.0 + 0.2 * i)
+        mujoco.mj_getState(model, d, initial[i], spec)
+    state, _ = rollout.rollout(model, [mujoco.MjData(model)], initial, nstep=60)
+    for i in range(3):
+        d = mujoco.MjData(model)
+        mujoco.mj_setState(model, d, initial[i], spec)
+        for t in range(60):
+            mujoco.mj_step(model, d)
+        end = np.zeros(initial.shape[1])
+        mujoco.mj_getState(model, d, end, spec)
+        np.testing.assert_array_equal(state[i, -1], end)
+
+
 def test_a_model_without_the_plugin_is_refused_with_how_to_add_it():
     model = mujoco.MjModel.from_xml_string(THROWN.format(integrator="Euler"))
     with pytest.raises(EngineError, match=r"mjrft.load_model"):
