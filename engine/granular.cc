@@ -383,6 +383,10 @@ void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
 }  // namespace
 
 void RegisterGranular() {
+  // A second copy of the library in one process (another path to it) must not register the name
+  // again: MuJoCo treats a second, different plugin of one name as a fatal error.
+  int slot = -1;
+  if (mjp_getPlugin(kPluginName, &slot)) return;
   mjpPlugin plugin;
   mjp_defaultPlugin(&plugin);
   plugin.name = kPluginName;

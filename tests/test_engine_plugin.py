@@ -209,3 +209,24 @@ def test_a_c_program_steps_a_saved_model_with_the_plugin(tmp_path):
 def test_the_library_reports_the_mujoco_it_was_built_against():
     assert engine.library().mjrft_mujoco_version() == mujoco.mj_version()
     assert sys.modules["mjrft.core.engine"].library_path().exists()
+
+
+def test_a_second_copy_of_the_library_does_not_end_the_process(tmp_path):
+    # MuJoCo refuses a second plugin of one name as a fatal error (it would exit the process):
+    # a copy of the library loaded from another path leaves the registered one in place.
+    import shutil
+
+    copy_path = tmp_path / "libmjrft_granular_copy.so"
+    shutil.copy(engine.library_path(), copy_path)
+    script = (
+        "import ctypes, mujoco, mjrft\n"
+        "from mjrft.core import engine\n"
+        "engine.library()\n"
+        f"ctypes.CDLL({str(copy_path)!r})\n"
+        f"m = mjrft.load_model({THROWN.format(integrator='Euler')!r})\n"
+        "d = mujoco.MjData(m)\n"
+        "mujoco.mj_step(m, d)\n"
+        "print('still here')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert out.returncode == 0 and "still here" in out.stdout, out.stderr + out.stdout
