@@ -114,7 +114,10 @@ class Bridge:
         self.arrays: dict[str, np.ndarray] = {}
         s = State()
         for kind, name in state_arrays():
-            src = st.userdata if name == "soil" else getattr(fd, name)
+            if name == "xfrc_last":  # the engine's own record; the numba pass has none
+                src = np.full_like(fd.user, np.nan)
+            else:
+                src = st.userdata if name == "soil" else getattr(fd, name)
             a = np.array(src, dtype=_TYPES[kind][1], order="C", copy=True) if copy else src
             self.arrays[name] = a
             setattr(s, name, a.ctypes.data)

@@ -26,7 +26,8 @@ import pytest
 
 import mjrft
 from mjrft.core import kernel, quadrature, surface
-from mjrft.field import GranularField, evaluate
+from mjrft.field import evaluate
+from mjrft.field.numba_field import GranularField, load_plain
 
 P = ctypes.c_void_p
 D = ctypes.c_double
@@ -449,7 +450,7 @@ def test_pure_wrenches_on_deforming_ground(lib):
     """A tilted foot pressed into the deforming ground and dragged sideways (installed steps,
     so the soil block deforms): PureWrenches reads the bridge's copy of the soil block, numba
     the MjData's userdata, at states along the run."""
-    m = mjrft.load_model(mujoco.MjSpec.from_string(FOOT))
+    m = load_plain(mujoco.MjSpec.from_string(FOOT))
     fld = GranularField(m)
     assert fld._tables.arrays.surface_prm[surface.KIND] == surface.SOIL
     d = mujoco.MjData(m)

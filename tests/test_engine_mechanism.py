@@ -25,7 +25,7 @@ from engine_bridge import Bridge, library
 
 from mjrft.field import lowspeed, mechanism, ownership, passive, rk4
 from mjrft.field.evaluate import first_bad_body, pure_wrenches
-from mjrft.field.numba_field import GranularField  # the numba reference
+from mjrft.field.numba_field import GranularField, load_plain  # the numba reference
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"

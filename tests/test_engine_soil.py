@@ -18,7 +18,8 @@ from engine_bridge import Bridge, library
 
 import mjrft
 from mjrft.core import soil, surface
-from mjrft.field import GranularField, deform
+from mjrft.field import deform
+from mjrft.field.numba_field import GranularField, load_plain
 
 F8P = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
 I8P = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
@@ -95,7 +96,7 @@ class Checker:
 
 
 def load(xml: str, **kw):
-    m = mjrft.load_model(mujoco.MjSpec.from_string(xml))
+    m = load_plain(mujoco.MjSpec.from_string(xml))
     f = GranularField(m, **kw)
     return m, f, mujoco.MjData(m)
 
