@@ -50,16 +50,20 @@ MJRFT_API int mjrft_instance(const mjModel* m) {
   return -1;
 }
 
-// A pass of the engine on d in the given mode (forward.h); returns its status.
+// A pass of the engine on d in the given mode (forward.h); returns its status, or 1 if d has no
+// usable instance.
 MJRFT_API long long mjrft_forward(const mjModel* m, mjData* d, int instance, int mode) {
-  auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);
-  mjrft::State s = in->Bind(m, d);
-  return mjrft::Forward(m, d, in->tables(), s, mode);
+  std::string error;
+  mjrft::Instance* in = mjrft::Instance::Of(m, d, instance, &error);
+  if (!in) return 1;
+  return in->Run(m, d, mode);
 }
 
 // The address of state array `name` of d's instance (element type and size: fields.h), or null.
 MJRFT_API void* mjrft_state_array(const mjModel* m, mjData* d, int instance, const char* name) {
-  auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);
+  std::string error;
+  mjrft::Instance* in = mjrft::Instance::Of(m, d, instance, &error);
+  if (!in) return nullptr;
   mjrft::State s = in->Bind(m, d);
 #define MJRFT_X(type, field, size, doc) \
   if (std::strcmp(name, #field) == 0) return static_cast<void*>(s.field);
@@ -70,14 +74,16 @@ MJRFT_API void* mjrft_state_array(const mjModel* m, mjData* d, int instance, con
 
 // The number of elements of state array `name` of d's instance (fields.h), or -1.
 MJRFT_API long long mjrft_state_size(const mjModel* m, mjData* d, int instance, const char* name) {
-  (void)m;
-  auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);
-  return in->ArraySize(name);
+  std::string error;
+  mjrft::Instance* in = mjrft::Instance::Of(m, d, instance, &error);
+  return in ? in->ArraySize(name) : -1;
 }
 
 // The address of table `name` of d's instance, or null.
-MJRFT_API const void* mjrft_table(mjData* d, int instance, const char* name) {
-  auto* in = reinterpret_cast<mjrft::Instance*>(d->plugin_data[instance]);
+MJRFT_API const void* mjrft_table(const mjModel* m, mjData* d, int instance, const char* name) {
+  std::string error;
+  mjrft::Instance* in = mjrft::Instance::Of(m, d, instance, &error);
+  if (!in) return nullptr;
   const mjrft::Tables& t = in->tables();
 #define MJRFT_X(type, field, size, doc) \
   if (std::strcmp(name, #field) == 0) return static_cast<const void*>(t.field);

@@ -100,6 +100,7 @@
 #define MJRFT_STATE_WORK(X)                                                                \
   X(f64, user_in, nbody * 6, "other applied wrenches for the explicit path")              \
   X(f64, xfrc_last, nbody * 6, "what the last installed pass wrote into this xfrc_applied")  \
+  X(i64, fresh, 1, "1: another than this instance wrote the state last (reset, restored, copied)") \
   X(f64, elem_force, nelem * 3, "element forces of this pass's pure model [N]")           \
   X(f64, scratch, nelem * 3, "element forces of the treatment's extra evaluations")       \
   X(i64, cull, ng, "1 where the geom cannot touch the medium this pass")                  \

@@ -6,8 +6,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <new>
+#include <shared_mutex>
 #include <type_traits>
+#include <unordered_map>
 #include <string>
 #include <utility>
 
@@ -51,7 +54,25 @@ void ForEachPersistent(const Sizes& n, F&& f) {
 void SetPointer(State* s, f64* State::*member, void* p) { s->*member = static_cast<f64*>(p); }
 void SetPointer(State* s, i64* State::*member, void* p) { s->*member = static_cast<i64*>(p); }
 
-bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error);
+// The sizes that fix the state's layout, from the instance's config: MuJoCo asks nstate while
+// compiling, before the model's custom numeric fields hold their data, so the loader writes
+// these three sizes into the config too (init checks them against the tables).
+bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error) {
+  i64 v[3];
+  const char* keys[3] = {"ntbody", "ntgeom", "nsoil"};
+  for (int i = 0; i < 3; i++) {
+    const char* text = mj_getPluginConfig(m, instance, keys[i]);
+    char* end = nullptr;
+    v[i] = text ? std::strtoll(text, &end, 10) : -1;
+    if (!text || end == text || *end != '\0' || v[i] < 0) {
+      *error = std::string(kPluginName) + ": config '" + keys[i] + "' must be a count, got '" +
+               (text ? text : "") + "': load the model with mjrft.load_model(path_or_xml)";
+      return false;
+    }
+  }
+  *n = {m->nbody, m->nv, m->nu, 0, v[1], v[0], v[2], 1, 1};
+  return true;
+}
 
 }  // namespace
 
@@ -232,7 +253,8 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
   }
   MJRFT_STATE_WORK(MJRFT_X)
 #undef MJRFT_X
-  out->Reset(nullptr);
+  out->ResetCaches();
+  for (i64 i = 0; i < 6 * n.nbody; i++) out->work_state_.xfrc_last[i] = NAN;
   return out;
 }
 
@@ -259,22 +281,26 @@ State Instance::Bind(const mjModel* m, mjData* d) const {
   return s;
 }
 
-void Instance::Reset(f64* plugin_state) {
-  // persistent: zero, and every geom may hold element forces (they are zeroed when culled)
-  if (plugin_state) {
-    std::memset(plugin_state, 0, sizeof(f64) * StateSize(sizes_));
-    i64 offset = 0;
-    ForEachPersistent(sizes_, [&](auto member, i64 size) {
-      if constexpr (std::is_same<decltype(member), i64* State::*>::value) {
-        if (member == &State::geom_dirty) {
-          i64* dirty = reinterpret_cast<i64*>(plugin_state + offset);
-          for (i64 g = 0; g < size; g++) dirty[g] = 1;
-        }
+void Instance::ResetState(const mjModel* m, int instance, f64* plugin_state) {
+  Sizes n;
+  std::string error;
+  if (!ConfigSizes(m, instance, &n, &error)) return;  // init refused this model already
+  std::memset(plugin_state, 0, sizeof(f64) * StateSize(n));
+  // every geom may hold element forces (they are zeroed when it is culled)
+  i64 offset = 0;
+  ForEachPersistent(n, [&](auto member, i64 size) {
+    if constexpr (std::is_same<decltype(member), i64* State::*>::value) {
+      if (member == &State::geom_dirty) {
+        i64* dirty = reinterpret_cast<i64*>(plugin_state + offset);
+        for (i64 g = 0; g < size; g++) dirty[g] = 1;
       }
-      offset += size;
-    });
-  }
-  // work: the caches hold nothing, the ground's work grids are empty
+    }
+    offset += size;
+  });
+}
+
+void Instance::ResetCaches() {
+  // the caches hold nothing, the ground's work grids are empty
   State& w = work_state_;
   const i64 nv = sizes_.nv, nk = sizes_.nk, cells = sizes_.soil_nrow * sizes_.soil_ncol;
   for (i64 i = 0; i < 1 + nk + 6 * nv + 6 * nk; i++) w.mech_cfg[i] = -1.0;
@@ -283,38 +309,66 @@ void Instance::Reset(f64* plugin_state) {
     w.soil_floor[i] = INFINITY;
     w.soil_owner[i] = -1;
   }
-  // nothing written into this mjData yet: NaN equals no value a user can assign
-  for (i64 i = 0; i < 6 * sizes_.nbody; i++) w.xfrc_last[i] = NAN;
+}
+
+i64 Instance::Run(const mjModel* m, mjData* d, int mode) {
+  State s = Bind(m, d);
+  // The counters change in every evaluating pass: other values than this instance left are
+  // another writer's (mj_resetData, mj_setState, mj_copyData, a pickled mjData).
+  bool ours = s.stats[0] == seen_[0] && s.stats[1] == seen_[1] && s.stats[2] == seen_[2];
+  s.fresh[0] = ours ? 0 : 1;
+  if (!ours) ResetCaches();
+  i64 status = Forward(m, d, tables_, s, mode);
+  for (int i = 0; i < 3; i++) seen_[i] = s.stats[i];
+  return status;
 }
 
 namespace {
 
-Instance* Get(const mjData* d, int instance) {
-  return reinterpret_cast<Instance*>(d->plugin_data[instance]);
+// The live instances and the mjData each was made for. Read in every pass (shared lock), written
+// when an mjData is made, freed, or found holding another mjData's instance.
+std::shared_mutex registry_mutex;
+std::unordered_map<const Instance*, const mjData*>& Registry() {
+  static auto* registry = new std::unordered_map<const Instance*, const mjData*>();
+  return *registry;
 }
 
-// The sizes that fix the state's layout, from the instance's config: MuJoCo asks nstate while
-// compiling, before the model's custom numeric fields hold their data, so the loader writes
-// these three sizes into the config too (init checks them against the tables).
-bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error) {
-  i64 v[3];
-  const char* keys[3] = {"ntbody", "ntgeom", "nsoil"};
-  for (int i = 0; i < 3; i++) {
-    const char* text = mj_getPluginConfig(m, instance, keys[i]);
-    char* end = nullptr;
-    v[i] = text ? std::strtoll(text, &end, 10) : -1;
-    if (!text || end == text || *end != '\0' || v[i] < 0) {
-      *error = std::string(kPluginName) + ": config '" + keys[i] + "' must be a count, got '" +
-               (text ? text : "") + "': load the model with mjrft.load_model(path_or_xml)";
-      return false;
-    }
-  }
-  *n = {m->nbody, m->nv, m->nu, 0, v[1], v[0], v[2], 1, 1};
-  return true;
+}  // namespace
+
+void Instance::Adopt(std::unique_ptr<Instance> in, mjData* d, int instance) {
+  std::unique_lock lock(registry_mutex);
+  Registry()[in.get()] = d;
+  d->plugin_data[instance] = reinterpret_cast<uintptr_t>(in.release());
 }
+
+void Instance::Release(mjData* d, int instance) {
+  auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
+  d->plugin_data[instance] = 0;
+  std::unique_lock lock(registry_mutex);
+  auto it = Registry().find(in);
+  if (it == Registry().end() || it->second != d) return;  // another mjData's: not ours to free
+  Registry().erase(it);
+  lock.unlock();
+  delete in;
+}
+
+Instance* Instance::Of(const mjModel* m, mjData* d, int instance, std::string* error) {
+  auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
+  {
+    std::shared_lock lock(registry_mutex);
+    auto it = Registry().find(in);
+    if (it != Registry().end() && it->second == d) return in;
+  }
+  std::unique_ptr<Instance> fresh = Create(m, instance, error);
+  if (!fresh) return nullptr;
+  Instance* out = fresh.get();
+  Adopt(std::move(fresh), d, instance);
+  return out;
+}
+
+namespace {
 
 int NState(const mjModel* m, int instance) {
-  (void)instance;
   Sizes n;
   std::string error;
   if (!ConfigSizes(m, instance, &n, &error)) return 0;  // init reports the reason
@@ -328,30 +382,28 @@ int Init(const mjModel* m, mjData* d, int instance) {
     mju_warning("%s", error.c_str());
     return -1;
   }
-  in->Reset(d->plugin_state + m->plugin_stateadr[instance]);
-  d->plugin_data[instance] = reinterpret_cast<uintptr_t>(in.release());
+  Instance::ResetState(m, instance, d->plugin_state + m->plugin_stateadr[instance]);
+  Instance::Adopt(std::move(in), d, instance);
   return 0;
 }
 
-void Destroy(mjData* d, int instance) {
-  delete Get(d, instance);
-  d->plugin_data[instance] = 0;
-}
+void Destroy(mjData* d, int instance) { Instance::Release(d, instance); }
 
 void Reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {
-  (void)m, (void)instance;
-  reinterpret_cast<Instance*>(plugin_data)->Reset(plugin_state);
+  (void)plugin_data;  // the caches are emptied at the next pass (State::stamp is zeroed)
+  Instance::ResetState(m, instance, plugin_state);
 }
 
-// Raises the error of a failed pass as MuJoCo's error (a mujoco.FatalError in Python) naming
-// the body and the time, in the words of the Python field's errors.
-void RaiseStatus(const mjModel* m, const mjData* d, const Tables& t, i64 status) {
+// The message of a failed pass, naming the body and the time in the words of the Python field's
+// errors.
+void StatusMessage(const mjModel* m, const mjData* d, const Tables& t, i64 status, char* msg,
+                   int size) {
   f64 dt = m->opt.timestep;
-  long long step = dt > 0 && std::isfinite(d->time) ? std::llrint(std::nearbyint(d->time / dt)) : -1;
-  char msg[600];
+  long long step =
+      dt > 0 && std::isfinite(d->time) ? std::llrint(std::nearbyint(d->time / dt)) : -1;
   if (status <= kBelowGround) {
     i64 b = t.tbody_bodyid[kBelowGround - status];
-    std::snprintf(msg, sizeof(msg),
+    std::snprintf(msg, size,
                   "body '%s' reaches below the bottom of the deforming ground (mjrft:region "
                   "zmin = %g m) at time %.6g s (step %lld): the ground is excavated from above, "
                   "so an intruder must enter it from above its surface; lower the region's zmin "
@@ -359,25 +411,34 @@ void RaiseStatus(const mjModel* m, const mjData* d, const Tables& t, i64 status)
                   m->names + m->name_bodyadr[b], t.region[2], d->time, step);
   } else {
     i64 b = t.tbody_bodyid[-1 - status];
-    std::snprintf(msg, sizeof(msg),
+    std::snprintf(msg, size,
                   "body '%s' has a non-finite position or velocity at time %.6g s (step %lld); "
                   "the granular field refuses to feed NaN forward (check the timestep and "
                   "actuators)",
                   m->names + m->name_bodyadr[b], d->time, step);
   }
-  mju_error("%s", msg);
+}
+
+// One installed pass on d; false with the reason in msg.
+bool Pass(const mjModel* m, mjData* d, int instance, char* msg, int size) {
+  std::string error;
+  Instance* in = Instance::Of(m, d, instance, &error);
+  if (!in) {  // init failed and said why; MuJoCo's compiler steps such a model anyway
+    std::snprintf(msg, size, "%s: the instance could not be made: %s", kPluginName,
+                  error.c_str());
+    return false;
+  }
+  i64 status = in->Run(m, d, kInstalled);
+  if (status == kOk) return true;
+  StatusMessage(m, d, in->tables(), status, msg, size);
+  return false;
 }
 
 void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
   (void)capability_bit;
-  Instance* in = Get(d, instance);
-  if (!in) {  // init failed and said why; MuJoCo's compiler steps such a model anyway
-    mju_error("%s: the instance was not initialised (see the warning above)", kPluginName);
-    return;
-  }
-  State s = in->Bind(m, d);
-  i64 status = Forward(m, d, in->tables(), s, kInstalled);
-  if (status != kOk) RaiseStatus(m, d, in->tables(), status);  // no C++ object is live here
+  char msg[1000];
+  // mju_error does not return (it longjmps out of MuJoCo): only plain data is live here
+  if (!Pass(m, d, instance, msg, sizeof(msg))) mju_error("%s", msg);
 }
 
 }  // namespace

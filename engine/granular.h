@@ -36,10 +36,22 @@ class Instance {
   // The instance's tables and work arrays, or nullptr with the reason in error.
   static std::unique_ptr<Instance> Create(const mjModel* m, int instance, std::string* error);
 
-  // The State of this instance on d (persistent arrays in d->plugin_state).
+  // The instance of d: the one made for d, or (when d's plugin_data holds another mjData's, as
+  // MuJoCo's pickling of an mjData leaves it) a new one made now; nullptr with the reason in error.
+  static Instance* Of(const mjModel* m, mjData* d, int instance, std::string* error);
+  // A pass of the engine on d in mode (forward.h); returns its status. A state this instance
+  // did not write last (reset, restored by mj_setState, copied from another mjData) starts
+  // with empty caches and without the previous forward pass's loads, as a new mjData would.
+  i64 Run(const mjModel* m, mjData* d, int mode);
+  // The State of this instance on d, as it is.
   State Bind(const mjModel* m, mjData* d) const;
-  // Zeroes the persistent state at plugin_state and resets the caches.
-  void Reset(f64* plugin_state);
+  // Zeroes the persistent state of instance `instance` of m at plugin_state.
+  static void ResetState(const mjModel* m, int instance, f64* plugin_state);
+  // Empties the caches of the work arrays (what a new mjData starts with).
+  void ResetCaches();
+  // Registers a new instance of d (init) and forgets one (destroy: only d's own is deleted).
+  static void Adopt(std::unique_ptr<Instance> in, mjData* d, int instance);
+  static void Release(mjData* d, int instance);
 
   const Tables& tables() const { return tables_; }
   // Number of elements of state array `name` (fields.h), or -1 if there is none.
@@ -53,6 +65,7 @@ class Instance {
 
  private:
   int instance_ = 0;
+  i64 seen_[3] = {-1, -1, -1};  // the state's counters (stats[0:3]) after this instance's last pass
   Sizes sizes_{};
   Tables tables_{};
   std::vector<i64> ints_;   // the i64 tables (converted from the model's numeric fields)

@@ -472,12 +472,16 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
   bool same_time = s.mech_time[1] == 1.0 && d->time == s.mech_time[0];
   bool valid = PredictorValid(m, d, s, same_time);
   if (!same_time) {
+    // A state another writer left (s.fresh: reset, restored, copied) comes without the previous
+    // forward pass's qacc and actuator_force (mjData holds another state's): read as a new
+    // mjData holds them, zero.
+    bool known = !s.fresh[0];
     for (int i = 0; i < nv; i++) {
-      s.mech_in[i] = d->qacc[i];
+      s.mech_in[i] = known ? d->qacc[i] : 0.0;
       s.mech_in[nv + i] = s.mech_tau[i];
     }
     for (int i = 0; i < 6 * nk; i++) s.mech_in_prev[i] = s.mech_prev[i];
-    for (int a = 0; a < m->nu; a++) s.mech_in_force[a] = d->actuator_force[a];
+    for (int a = 0; a < m->nu; a++) s.mech_in_force[a] = known ? d->actuator_force[a] : 0.0;
     for (int k = 0; k < nk; k++) s.mech_in_held[k] = s.mech_held[k];
   }
   // mech_held and mech_tau are dead from here to the end, where they are written: the bodies

@@ -248,7 +248,7 @@ class Mirror:
     def sync(self) -> None:
         """The bridge's State arrays := the numba FieldData arrays (and soil block)."""
         for _, name in eb.state_arrays():
-            if name == "xfrc_last":  # the engine's own record: the numba pass has none
+            if name in ("xfrc_last", "fresh"):  # the engine's own records: numba has none
                 continue
             src = self.st.userdata if name == "soil" else getattr(self.s, name)
             np.copyto(self.bridge.arrays[name], src)

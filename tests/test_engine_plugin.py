@@ -230,3 +230,48 @@ def test_a_second_copy_of_the_library_does_not_end_the_process(tmp_path):
     )
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert out.returncode == 0 and "still here" in out.stdout, out.stderr + out.stdout
+
+
+def test_a_restored_state_steps_as_a_new_mjdata_in_a_mechanism():
+    # The mechanism treatment caches factors of M in the instance's work arrays: a state
+    # restored by mj_setState (a rollout reusing one MjData) must start from empty caches, as a
+    # new MjData does, and give its physics bit for bit.
+    from mjrft.app.simulate import resolve_model
+
+    model = mjrft.load_model(resolve_model("hexapod_sand"))
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    start = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, start, 0)
+    saved = np.zeros(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, start, saved, spec)
+
+    def run(d):
+        d.ctrl[:] = model.key_ctrl[0]
+        for _ in range(150):
+            mujoco.mj_step(model, d)
+        return np.concatenate([d.qpos, d.qvel])
+
+    reused = mujoco.MjData(model)
+    for _ in range(2):
+        mujoco.mj_setState(model, reused, saved, spec)
+        got = run(reused)
+    fresh = mujoco.MjData(model)
+    mujoco.mj_setState(model, fresh, saved, spec)
+    np.testing.assert_array_equal(got, run(fresh))
+
+
+def test_a_pickled_data_gets_its_own_engine_instance():
+    # MuJoCo's pickling of an MjData copies plugin_data's raw pointers: the copy must get an
+    # instance of its own (no shared work arrays, no double free when both are deleted)
+    import gc
+    import pickle
+
+    model, data = _thrown("RK4")
+    _steps(model, data, 20)
+    twin = pickle.loads(pickle.dumps(data))
+    np.testing.assert_array_equal(_steps(model, twin, 30), _steps(model, data, 30))
+    del data
+    gc.collect()
+    _steps(model, twin, 5)  # the original's instance is gone; the twin's is its own
+    del twin
+    gc.collect()
