@@ -4,7 +4,7 @@ The law is docs/design.md section 2.
 
 Written the obvious way (angles via arctan2, the Fourier phases' cosines and sines evaluated
 directly, np.cross for the frame), as a user would first write it. benchmarks/kernel.py times the
-compiled kernel against it and checks both agree.
+engine's C++ kernel against it and checks both agree.
 """
 
 from __future__ import annotations

@@ -15,8 +15,9 @@ Run: python benchmarks/pareto.py [--quick]
    M about the body origin (sphere/ellipsoid centre, the paraboloid's pivot), L = the largest
    distance of a surface point from that origin (the moment of a symmetric body about its centre
    can be near zero, so it is scaled by peak force times size, not by its own peak). Cost: wall
-   time of one evaluation per trajectory sample (compiled kernel ``mjrft.core.kernel``, the
-   field's own hot path; identical to ``mjrft.body.trajectory_wrenches`` to 1e-15, checked here).
+   time of one evaluation per trajectory sample (the engine's C++ kernel, the plugin's own hot
+   path, through ``mjrft.core.engine.trajectory``; identical to
+   ``mjrft.body.trajectory_wrenches``, checked here).
 2. Fit error(n) = C n^-p per case (log-log least squares over 400 <= n <= REF/8); rule A (the
    three rig motions only: p = min p, C = MARGIN x the envelope of the measured points) and the
    proposed rule n(tol) = max(RULE_FLOOR, ceil((RULE_C / tol)^(1 / RULE_P))) covering all five
@@ -55,8 +56,7 @@ import numpy as np
 from mjrft import geometry, simulate
 from mjrft.app import demos
 from mjrft.body import trajectory_wrenches
-from mjrft.core import kernel as _kernel
-from mjrft.core import quadrature, surface
+from mjrft.core import engine, quadrature
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.units import MM
@@ -163,10 +163,6 @@ def root_shape(n: int) -> ElementSet:
     return shape.transformed(np.eye(3), np.array([0.0, 0.0, -demos.ROOT_PIVOT_ABOVE_APEX]))
 
 
-_NO_REGION = np.zeros((2, 3))
-_FLAT = surface.flat(0.0)
-
-
 def one_point(shape: ElementSet) -> tuple[ElementSet, np.ndarray, np.ndarray]:
     """The shape as flat facets evaluated by the one-point rule alone (facet normals and areas,
     reach 0: nothing clipped): the quadrature of mjrft before mjrft.core.quadrature."""
@@ -178,23 +174,17 @@ def one_point(shape: ElementSet) -> tuple[ElementSet, np.ndarray, np.ndarray]:
 def evaluate(shape: ElementSet, motion: Motion, *, old: bool = False) -> tuple[np.ndarray, float]:
     """(T, 6) force and moment about the body origin along the motion; seconds per sample.
     old: the one-point rule on flat facets (``one_point``) instead of mjrft's quadrature."""
-    pos, rot, vel, ang = motion
+    pos, rot, vel, ang = (np.ascontiguousarray(a, dtype=np.float64) for a in motion)
     shape, reach, patch = one_point(shape) if old else (shape, *shape.quadrature)
     cent = np.ascontiguousarray(shape.centroids)
     norm = np.ascontiguousarray(shape.normals)
     area = np.ascontiguousarray(shape.areas)
-    rot = np.ascontiguousarray(rot)
     co, ay, zeta = MATERIAL.kernel_coefficients, MATERIAL.alpha_y0, MATERIAL.zeta
-    elem = np.zeros((len(area), 3))
-    no_rows = np.empty((0, _kernel.ROW))
-    out = np.zeros((len(pos), 6))
+    # One call for the whole trajectory (the arguments are checked once, outside the loop over
+    # samples): each sample is BodyWrench about the body origin, the plugin's own pass.
     t0 = time.perf_counter()
-    for i in range(len(pos)):
-        _kernel.body_wrench(
-            cent, norm, area, reach, patch, 0, len(area), co, ay, zeta, _FLAT.prm, _FLAT.grid,
-            False, _NO_REGION, _FLAT.grid[0],
-            rot[i], pos[i], ang[i], vel[i], pos[i], pos[i], out[i], elem, no_rows,
-        )  # fmt: skip
+    out = engine.trajectory(cent, norm, area, reach, patch, co, ay, zeta, 0.0, rot, pos, vel,
+                            ang, pos)  # fmt: skip
     return out, (time.perf_counter() - t0) / len(pos)
 
 
@@ -634,7 +624,7 @@ def plot(path: Path, acc, fits, cost, dtr) -> None:
                     str(r["triangles"]), (r["us_per_sample"], 100 * r["force_error"]),
                     fontsize=6, xytext=(3, 3), textcoords="offset points", color=col,
                 )  # fmt: skip
-    ax.set_xlabel("cost of one RFT evaluation of the body [µs] (compiled kernel)")
+    ax.set_xlabel("cost of one RFT evaluation of the body [µs] (the engine's kernel)")
     ax.set_ylabel("force error [%]")
     ax.set_title("Pareto: force error vs cost (labels: triangles)")
     ax.grid(True, which="both", alpha=0.3)

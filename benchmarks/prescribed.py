@@ -10,7 +10,8 @@ Run: python benchmarks/prescribed.py [--repeats N]
    is 0.5 us per plate and evaluation, measured once with Octave 8 on the Zen 1 VM
    (``AUTHORS_US_PER_PLATE``), stated as such in the output.
 2. ``mjrft.element_forces`` (checked inputs, unit normals) against the kernel it calls
-   (``mjrft.core.kernel.forces``, trusted arrays) at 1k, 10k and 100k elements.
+   (``mjrft.core.engine.forces``, the C++ kernel through ctypes, trusted arrays) at 1k, 10k and
+   100k elements.
 Medians over repeats; writes benchmarks/results/prescribed.csv.
 """
 
@@ -26,7 +27,7 @@ import numpy as np
 
 import mjrft
 from mjrft.app import demos
-from mjrft.core import body, kernel
+from mjrft.core import body, engine
 
 OUT = Path(__file__).resolve().parent / "results"
 #: The authors' rft_3D_body under GNU Octave 8, per plate and evaluation [us] (Zen 1 VM).
@@ -95,7 +96,7 @@ def time_element_forces(n: int, repeats: int) -> list[dict]:
     n_hat = normal / np.linalg.norm(normal, axis=1, keepdims=True)
     area, vel, out = np.full(n, 1e-6), rng.normal(size=(n, 3)), np.empty((n, 3))
     co, ay, zeta = glass.kernel_coefficients, glass.alpha_y0, glass.zeta
-    kern = functools.partial(kernel.forces, pos, n_hat, area, vel, co, ay, zeta, 0.0, out)
+    kern = functools.partial(engine.forces, pos, n_hat, area, vel, co, ay, zeta, 0.0, out)
     t_kernel = median_time(kern, repeats)
     rows = []
     for label, normals in (("unit normals", n_hat), ("normals of any length", normal)):

@@ -1,8 +1,9 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
-// C entry points of the RFT kernel (kernel.h) for the Python RFT-only API (mjrft.core.kernel's
-// functions, same semantics), through ctypes: raw pointers to C-contiguous float64 / int64
-// arrays and their sizes, no struct passed by value. Rotations are row-major (3, 3) matrices.
+// C entry points of the RFT kernel (kernel.h) for the Python RFT-only API (mjrft.core.engine's
+// wrappers, which check the arrays' shapes and sizes before calling), through ctypes: raw
+// pointers to C-contiguous float64 / int64 arrays and their sizes, no struct passed by value.
+// Rotations are row-major (3, 3) matrices.
 
 #include <cstdint>
 

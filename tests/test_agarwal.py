@@ -1,4 +1,4 @@
-"""The agarwal3d force model (mjrft.core.agarwal): the compiled kernel against a slow
+"""The agarwal3d force model (mjrft.core.agarwal): the engine's kernel against a slow
 reference, dissipation, its limiting case, its symmetry, and the field running it."""
 
 from __future__ import annotations
@@ -111,15 +111,12 @@ SPHERE = """<mujoco><option timestep="0.001"/>
 
 
 def test_the_field_runs_the_model_the_mjcf_names():
-    m = mujoco.MjModel.from_xml_string(
-        SPHERE.format(model='<text name="mjrft:model" data="agarwal3d"/>')
-    )
+    m = mjrft.load_model(SPHERE.format(model='<text name="mjrft:model" data="agarwal3d"/>'))
     field = GranularField(m)
     assert field.scene.material.model == "agarwal3d"
     d = mujoco.MjData(m)
-    with field.installed():
-        for _ in range(300):
-            mujoco.mj_step(m, d)
+    for _ in range(300):
+        mujoco.mj_step(m, d)
     assert np.all(np.isfinite(d.qpos)) and d.qpos[2] < 0.01  # it fell in and was held
     d.qvel[:3] = [0.02, 0.0, -0.05]  # the pure model at a motion (at rest nothing acts)
     mujoco.mj_forward(m, d)
@@ -130,7 +127,7 @@ def test_the_field_runs_the_model_the_mjcf_names():
                      for e in zip(st.pos, st.normal, st.area, st.vel, strict=True)])  # fmt: skip
     np.testing.assert_allclose(st.force, want, rtol=REFERENCE_RTOL,
                                atol=REFERENCE_RTOL * np.abs(want).max())  # fmt: skip
-    plain = GranularField(mujoco.MjModel.from_xml_string(SPHERE.format(model="")))
+    plain = GranularField(mjrft.load_model(SPHERE.format(model="")))
     assert plain.scene.material.model == "treers2021"
 
 
@@ -141,7 +138,7 @@ def test_the_field_runs_the_model_the_mjcf_names():
 ])  # fmt: skip
 def test_bad_model_settings_are_named(extra, message):
     with pytest.raises(SceneError, match=message):
-        GranularField(mujoco.MjModel.from_xml_string(SPHERE.format(model=extra)))
+        mjrft.load_model(SPHERE.format(model=extra))
 
 
 def test_a_material_without_the_models_scale_is_refused():

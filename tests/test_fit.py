@@ -126,15 +126,13 @@ def test_cli_fit_writes_the_mjcf_json_and_plot_and_the_mjcf_loads(tmp_path, caps
     assert summary["plates"] == len(data.beta)
     assert (out / "residuals.png").stat().st_size > 10_000
     # The MJCF snippet makes the same medium when pasted into a scene.
-    import mujoco
-
     from mjrft.field import GranularField
 
     xml = f"""<mujoco><custom>{(out / "material.xml").read_text()}
       <tuple name="mjrft:intruders"><element objtype="geom" objname="g" prm="0"/></tuple>
       </custom><worldbody><body><freejoint/><geom name="g" size="0.01"/></body></worldbody>
       </mujoco>"""
-    fld = GranularField(mujoco.MjModel.from_xml_string(xml))
+    fld = GranularField(mjrft.load_model(xml))
     beta, gamma = np.radians([10.0, 40.0, -70.0]), np.radians([80.0, -20.0, 30.0])
     # 10 significant digits in the MJCF.
     np.testing.assert_allclose(

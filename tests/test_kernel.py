@@ -1,4 +1,5 @@
-"""The compiled kernels equal the NumPy evaluation of the same equations."""
+"""The engine's kernel (C++, through mjrft.core.engine) equals the NumPy evaluation of the same
+equations, and its Python bindings check what they are given."""
 
 import mujoco
 import numpy as np
@@ -6,8 +7,10 @@ import pytest
 from field_reference import pure_wrench
 
 import mjrft
-from mjrft.core import kernel as _kernel
-from mjrft.core.rft import _unit_rows, numpy_forces
+from mjrft import geometry
+from mjrft.core import engine, quadrature, surface
+from mjrft.core.body import quat_to_mat
+from mjrft.core.rft import _unit_rows, numpy_forces, quadrature_forces
 from mjrft.field import GranularField
 
 GLASS = mjrft.Material.preset("glass_beads")
@@ -41,10 +44,11 @@ def test_compiled_forces_equal_numpy(material, n):
     pos, n_hat, area, vel = inputs(rng, max(n, 200))
     pos, n_hat, area, vel = pos[:n], n_hat[:n], area[:n], vel[:n]
     out = np.full((n, 3), np.nan)
-    count = _kernel.forces(
+    got, count = engine.forces(
         pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
         material.zeta, 0.0, out,
     )  # fmt: skip
+    assert got is out  # written in place
     ref = numpy_forces(pos, n_hat, area, vel, material, 0.0)
     scale = max(np.abs(ref).max(), 1e-300)
     np.testing.assert_allclose(out, ref, rtol=ROUNDOFF, atol=ROUNDOFF * scale)
@@ -61,11 +65,11 @@ def test_body_kernel_equals_field_numpy_path():
       <geom type="box" size="0.01 0.01 0.002" pos="0.02 0 0.01" contype="0" conaffinity="0"/>
       <geom type="sphere" size="0.005" pos="0 0 0.2" contype="0" conaffinity="0"/>
     </body></worldbody></mujoco>"""
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml, low_speed="off")
     d = mujoco.MjData(m)
     d.qvel[:] = [0.02, -0.01, -0.05, 2.0, -1.0, 0.5]
     mujoco.mj_forward(m, d)
-    fld = GranularField(m, low_speed="off")
+    fld = GranularField(m)
     fast = fld.wrench(d)
     slow = pure_wrench(fld, d)  # NumPy transforms and element_forces, culling by region there
     assert np.any(slow != 0)
@@ -73,16 +77,18 @@ def test_body_kernel_equals_field_numpy_path():
     for st in fld.element_states(d):  # the pass's element forces at the states it reports
         ref = mjrft.element_forces(st.pos, st.normal, st.area, st.vel, fld.material)
         np.testing.assert_allclose(st.force, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
-    # The sphere 20 cm up is culled by its bounding sphere: its triangles are never evaluated.
+    # The sphere 20 cm up is culled by its bounding sphere: its triangles are never evaluated
+    # (in mj_forward's pass and in wrench's).
     sizes = np.diff(fld.bodies[0].segments)
-    assert fld.stats["evaluated"] == sizes[0] + sizes[1]
+    stats = fld.stats_of(d)
+    assert stats["calls"] == 2
+    assert stats["evaluated"] == stats["calls"] * (sizes[0] + sizes[1])
 
 
 def _forces(material, pos, n_hat, area, vel):
-    out = np.full(pos.shape, np.nan)
-    _kernel.forces(
+    out, _ = engine.forces(
         pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
-        material.zeta, 0.0, out,
+        material.zeta, 0.0,
     )  # fmt: skip
     return out
 
@@ -134,3 +140,97 @@ def test_speed_scale_never_changes_the_force(scale):
     out = _forces(GLASS, pos, n_hat, area, vel * scale)
     assert np.all(np.isfinite(out))
     np.testing.assert_allclose(out, ref, rtol=ROUNDOFF, atol=ROUNDOFF * np.abs(ref).max())
+
+
+def _plate_body():
+    """A body of a few body-frame elements (its quadrature data from the box's triangles)."""
+    es = geometry.box([0.01, 0.02, 0.005])
+    reach, patch = es.quadrature
+    return es.centroids, es.normals, es.areas, reach, patch
+
+
+def test_body_wrench_rows_give_the_evaluated_wrench():
+    """The quadrature rows body_wrench writes instead of forces (media given as callables),
+    evaluated by the NumPy path, sum to the wrench the kernel evaluates itself."""
+    cent, norm, area, reach, patch = _plate_body()
+    flat = surface.flat(0.0)
+    rot = quat_to_mat(np.array([0.9, 0.2, 0.3, 0.1]))
+    motion = (rot, [0.0, 0.0, -0.003], [0.7, 0.7, 0.0], [0.003, 0.0, -0.01], [0.0, 0.0, -0.003],
+              [0.001, 0.0, -0.002])  # fmt: skip
+    medium = (GLASS.kernel_coefficients, GLASS.alpha_y0, GLASS.zeta, flat.prm, flat.grid)
+    wrench, elem_force, acting = engine.body_wrench(
+        cent, norm, area, reach, patch, *medium, None, None, *motion
+    )
+    assert acting == np.count_nonzero(np.any(elem_force != 0.0, axis=1)) > 0
+    np.testing.assert_allclose(wrench[:3], elem_force.sum(axis=0), rtol=1e-12)
+    rows = np.zeros((len(area), engine.ROW))
+    w0, f0, written = engine.body_wrench(
+        cent, norm, area, reach, patch, *medium, None, None, *motion, rows
+    )
+    assert written >= acting and not np.any(w0) and not np.any(f0)
+    f = quadrature_forces(rows, GLASS)
+    torque = np.cross(rows[:, :3] - motion[5], f).sum(axis=0)
+    scale = np.abs(wrench).max()
+    np.testing.assert_allclose(np.concatenate([f.sum(axis=0), torque]), wrench, rtol=0,
+                               atol=ROUNDOFF * scale)  # fmt: skip
+    # A sub-range evaluates only those elements; the rest of elem_force stays zero.
+    _, part, _ = engine.body_wrench(
+        cent, norm, area, reach, patch, *medium, None, None, *motion, start=2, stop=5
+    )
+    np.testing.assert_array_equal(part[2:5], elem_force[2:5])
+    assert not np.any(part[:2]) and not np.any(part[5:])
+
+
+def test_the_bindings_name_what_does_not_fit():
+    """Arrays of the wrong shape, type or layout raise before the library is called, naming
+    the argument; nothing is read or written out of bounds."""
+    pos, n_hat, area, vel = inputs(np.random.default_rng(2), 200)
+    co = GLASS.kernel_coefficients
+    with pytest.raises(
+        ValueError, match=r"forces: normal has shape \(199, 3\), expected \(200, 3\)"
+    ):
+        engine.forces(pos, n_hat[1:], area, vel, co, 0.1, 1.0, 0.0)
+    with pytest.raises(ValueError, match=r"forces: area has shape \(200, 1\), expected \(200,\)"):
+        engine.forces(pos, n_hat, area[:, None], vel, co, 0.1, 1.0, 0.0)
+    with pytest.raises(ValueError, match="coef has 5 entries, a force model reads at least 18"):
+        engine.forces(pos, n_hat, area, vel, co[:5], 0.1, 1.0, 0.0)
+    with pytest.raises(TypeError, match="out must be a float64 NumPy array, got float32"):
+        engine.forces(pos, n_hat, area, vel, co, 0.1, 1.0, 0.0, np.zeros((200, 3), np.float32))
+    with pytest.raises(ValueError, match="out must be C-contiguous and writable"):
+        engine.forces(pos, n_hat, area, vel, co, 0.1, 1.0, 0.0, np.zeros((3, 200)).T)
+    with pytest.raises(TypeError, match="pos must be a real-valued array, got dtype complex128"):
+        engine.input_flags(pos + 0j, n_hat, area, vel)
+    # Inputs of other real types or layouts are converted: the same forces.
+    f, _ = engine.forces(pos, n_hat, area, vel, co, 0.1, 1.0, 0.0)
+    g, _ = engine.forces(np.asfortranarray(pos), n_hat.tolist(), area, vel, co, 0.1, 1.0, 0.0)
+    np.testing.assert_array_equal(f, g)
+
+    cent, norm, area, reach, patch = _plate_body()
+    flat, n = surface.flat(0.0), len(area)
+    motion = (np.eye(3), *np.zeros((5, 3)))
+    args = (cent, norm, area, reach, patch, co, 0.1, 1.0)
+    with pytest.raises(ValueError, match=r"patch has shape \(\d+, 18\), expected \(\d+, 19\)"):
+        engine.body_wrench(*args[:4], patch[:, :18], *args[5:], flat.prm, flat.grid, None, None,
+                           *motion)  # fmt: skip
+    with pytest.raises(ValueError, match=r"elements 3..2 are not within the \d+ given"):
+        engine.body_wrench(*args, flat.prm, flat.grid, None, None, *motion, start=3, stop=2)
+    with pytest.raises(ValueError, match=rf"rows has shape \(2, 10\), expected \({n}, 10\)"):
+        engine.body_wrench(*args, flat.prm, flat.grid, None, None, *motion, np.zeros((2, 10)))
+    with pytest.raises(ValueError, match=r"region has shape \(6,\), expected \(2, 3\)"):
+        engine.body_wrench(*args, flat.prm, flat.grid, np.zeros(6), None, *motion)
+    ground = surface.grid(np.zeros((3, 4)), 0.0, 0.0, 0.1, 0.1)
+    with pytest.raises(ValueError, match=r"surface grid has shape \(4, 3\), prm says \(3, 4\)"):
+        engine.body_wrench(*args, ground.prm, ground.grid.T.copy(), None, None, *motion)
+    soil = ground.prm.copy()
+    soil[surface.KIND] = surface.SOIL
+    with pytest.raises(ValueError, match="a deforming .SOIL. surface needs its soil block"):
+        engine.body_wrench(*args, soil, ground.grid, None, None, *motion)
+    with pytest.raises(ValueError, match="soil has 12 entries, the grid's block needs 47"):
+        engine.body_wrench(*args, soil, ground.grid, None, np.zeros(12), *motion)
+    with pytest.raises(
+        ValueError, match=r"trajectory: rot has shape \(3, 3\), expected \(1, 3, 3\)"
+    ):
+        engine.trajectory(*args, 0.0, np.eye(3), *np.zeros((4, 1, 3)))
+    with pytest.raises(ValueError, match="the coordinates' shapes do not broadcast"):
+        engine.surface_heights(flat.prm, flat.grid, None, np.zeros(3), np.zeros(4))
+    assert quadrature.PATCH_SIZE == 19  # the kernel's patch row (engine/tables.h kPatchSize)

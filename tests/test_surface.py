@@ -6,7 +6,9 @@ import mujoco
 import numpy as np
 import pytest
 
+import mjrft
 from mjrft import Material
+from mjrft.core import soil, surface
 from mjrft.field import GranularField, SceneError
 
 # A sum of element forces over a body symmetric about its centre, each force linear in its
@@ -58,7 +60,7 @@ def test_height_field_surface_is_mujocos_collision_surface():
     rng = np.random.default_rng(3)
     nrow, ncol = 7, 9
     asset = hfield_asset(nrow, ncol, rng.uniform(size=(nrow, ncol)), "0.3 0.2 0.05 0.01")
-    m = mujoco.MjModel.from_xml_string(scene(
+    m = mjrft.load_model(scene(
         '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
     ))  # fmt: skip
     fld = GranularField(m)
@@ -81,20 +83,79 @@ def test_height_field_surface_is_mujocos_collision_surface():
                                fld.surface.height(0.05 + 0.3, -0.02 - 0.2), atol=0)  # fmt: skip
 
 
+def _over_triangles(prm: np.ndarray, values: np.ndarray, x, y) -> np.ndarray:
+    """values (nrow, ncol) at a grid's vertices interpolated at (x, y), written plainly: linear
+    over the two triangles of each cell split along (c, r)-(c+1, r+1), the nearest edge's value
+    beyond the grid."""
+    nrow, ncol = values.shape
+    u = np.clip((x - prm[surface.X0]) / prm[surface.DX], 0, ncol - 1)
+    v = np.clip((y - prm[surface.Y0]) / prm[surface.DY], 0, nrow - 1)
+    c, r = np.minimum(u.astype(int), ncol - 2), np.minimum(v.astype(int), nrow - 2)
+    fu, fv = u - c, v - r
+    upper = fu >= fv  # the triangle (c, r), (c+1, r), (c+1, r+1)
+    corner = np.where(upper, values[r, c + 1], values[r + 1, c])
+    a, b = np.where(upper, fu, fv), np.where(upper, fv, fu)
+    return values[r, c] + a * (corner - values[r, c]) + b * (values[r + 1, c + 1] - corner)
+
+
+def test_heights_and_depths_follow_the_stated_rules():
+    """surface.height and surface.depth (the engine's functions) on every kind of surface
+    against mjrft.core.surface's rules written plainly: vertical depth below a flat surface, a
+    plane, a grid linear over each cell's two triangles (the edge beyond); under a deforming
+    grid (h + p) - z below the compacted level c, h - z between c and h, 0 above h. Both do the
+    same operations in the same order (the engine is built without contraction to fused
+    multiply-adds), so they agree to the last bit."""
+    rng = np.random.default_rng(8)
+    x, y, z = (
+        rng.uniform(-0.5, 0.5, 400),
+        rng.uniform(-0.4, 0.4, 400),
+        rng.uniform(-0.05, 0.05, 400),
+    )
+    flat = surface.flat(0.01)
+    np.testing.assert_array_equal(surface.depth(flat.prm, flat.grid, None, x, y, z), 0.01 - z)
+    slope = surface.plane(0.01, np.radians(20.0), np.radians(30.0))
+    want = 0.01 + slope.prm[surface.GX] * x + slope.prm[surface.GY] * y
+    np.testing.assert_array_equal(surface.height(slope.prm, slope.grid, None, x, y), want)
+    dune = surface.grid(rng.uniform(-0.02, 0.02, (5, 7)), -0.3, -0.2, 0.1, 0.1)
+    want = _over_triangles(dune.prm, dune.grid, x, y)
+    np.testing.assert_array_equal(dune.height(x, y), want)
+    np.testing.assert_array_equal(surface.depth(dune.prm, dune.grid, None, x, y, z), want - z)
+    # The same grid deforming: random offsets of h and c (c <= h) and memory p at its vertices.
+    prm = dune.prm.copy()
+    prm[surface.KIND] = surface.SOIL
+    block = np.zeros(surface.soil_block(*dune.grid.shape))
+    dh, dc, mem = soil.block_views(prm, block)
+    dh[:] = rng.uniform(-0.01, 0.01, dh.shape)
+    dc[:] = dh - rng.uniform(0.0, 0.01, dc.shape)
+    mem[:] = rng.uniform(0.0, 0.01, mem.shape)
+    h = _over_triangles(prm, dune.grid + dh, x, y)
+    c = _over_triangles(prm, dune.grid + dc, x, y)
+    p = _over_triangles(prm, mem, x, y)
+    touch = surface.SOIL_CONTACT
+    want = np.where(z >= h + touch, 0.0, np.maximum(h - z, 0.0) + np.where(z < c + touch, p, 0.0))
+    assert np.any(z < c) and np.any((z >= c) & (z < h)) and np.any(z > h)  # every case
+    np.testing.assert_array_equal(surface.height(prm, dune.grid, block, x, y), h)
+    np.testing.assert_array_equal(surface.depth(prm, dune.grid, block, x, y, z), want)
+    # Scalars in, a float out (the field layer asks for one point at a time).
+    assert surface.depth(prm, dune.grid, block, x[0], y[0], z[0]) == want[0]
+    with pytest.raises(ValueError, match="a deforming .SOIL. surface needs its soil block"):
+        surface.depth(prm, dune.grid, None, x, y, z)
+
+
 def test_a_flat_height_field_equals_the_flat_surface():
     """A height field of one elevation gives a sphere moving through the medium the wrench of
     the flat surface at that height, to 1e-12."""
     h = 0.01  # the geom's height: a constant elevation normalises to 0
     asset = hfield_asset(3, 4, np.zeros((3, 4)), "0.3 0.2 0.05 0.01")
-    hf = mujoco.MjModel.from_xml_string(scene(
+    hf = mjrft.load_model(scene(
         '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
-    ))  # fmt: skip
-    flat = mujoco.MjModel.from_xml_string(
-        scene(f'<numeric name="mjrft:surface_z" data="{h}"/>', SPHERE)
+    ), low_speed="off")  # fmt: skip
+    flat = mjrft.load_model(
+        scene(f'<numeric name="mjrft:surface_z" data="{h}"/>', SPHERE), low_speed="off"
     )
     state = ([0.04, 0.01, h - 0.006], [0.9, 0.1, 0.3, 0.2], [0.1, -0.05, -0.2], [1.0, 2.0, 0.5])
-    w_hf = GranularField(hf, low_speed="off").wrench(placed(hf, *state))[1]
-    w_flat = GranularField(flat, low_speed="off").wrench(placed(flat, *state))[1]
+    w_hf = GranularField(hf).wrench(placed(hf, *state))[1]
+    w_flat = GranularField(flat).wrench(placed(flat, *state))[1]
     assert np.linalg.norm(w_flat[:3]) > 1e-3
     np.testing.assert_allclose(w_hf, w_flat, rtol=1e-12, atol=1e-12 * np.abs(w_flat).max())
 
@@ -107,9 +168,9 @@ def test_a_plate_on_a_slope_feels_the_flat_force_at_its_local_depth(slope, azimu
     its force differs from the flat one only through the depth differences across it (bounded
     element by element) and follows the reference written plainly."""
     slope_xml = f'<numeric name="mjrft:surface_slope" data="{slope} {azimuth}"/>'
-    tilted = mujoco.MjModel.from_xml_string(scene(slope_xml, PLATE))
-    flat = mujoco.MjModel.from_xml_string(scene("", PLATE))
-    fld, fld_flat = GranularField(tilted, low_speed="off"), GranularField(flat, low_speed="off")
+    tilted = mjrft.load_model(scene(slope_xml, PLATE), low_speed="off")
+    flat = mjrft.load_model(scene("", PLATE), low_speed="off")
+    fld, fld_flat = GranularField(tilted), GranularField(flat)
     centre = np.array([0.3, -0.2, 0.0])
     local = float(fld.surface.height(centre[0], centre[1]))
     downhill = np.array([np.cos(np.radians(azimuth)), np.sin(np.radians(azimuth))])
@@ -144,15 +205,14 @@ def test_a_ball_resting_on_a_gentle_slope_stays_put():
     """The low-speed treatment holds a body on a slope gentler than the angle of repose: a
     sphere released on a 15-degree slope settles and then does not move."""
     slope_xml = '<numeric name="mjrft:surface_slope" data="15 0"/>'
-    m = mujoco.MjModel.from_xml_string(scene(slope_xml, SPHERE))
+    m = mjrft.load_model(scene(slope_xml, SPHERE))
     fld = GranularField(m)
     d = placed(m, [0.0, 0.0, 0.01], [1, 0, 0, 0], [0, 0, 0], [0, 0, 0])
-    with fld.installed():
-        for _ in range(1000):
-            mujoco.mj_step(m, d)
-        settled = d.xpos[1].copy()
-        for _ in range(2000):
-            mujoco.mj_step(m, d)
+    for _ in range(1000):
+        mujoco.mj_step(m, d)
+    settled = d.xpos[1].copy()
+    for _ in range(2000):
+        mujoco.mj_step(m, d)
     bottom = settled[2] - 0.01
     assert bottom < fld.surface.height(settled[0], settled[1]) - 0.002  # it sank into the slope
     assert np.linalg.norm(d.xpos[1] - settled) < 1e-7  # held: < 0.1 um over 2 s
@@ -179,51 +239,52 @@ def test_bad_surfaces_are_named(custom, asset, geom, message):
     asset = hfield_asset(3, 3, np.arange(9.0).reshape(3, 3), "0.3 0.2 0.05 0.01") if asset else ""
     extra = {"": hfield_geom() if asset else "", "none": "",
              "rot": hfield_geom().replace("/>", ' euler="0 0 30"/>')}[geom]  # fmt: skip
-    m = mujoco.MjModel.from_xml_string(scene(custom, SPHERE, asset, extra))
     with pytest.raises(SceneError, match=message):
-        GranularField(m)
+        mjrft.load_model(scene(custom, SPHERE, asset, extra))
 
 
-def test_a_python_material_refuses_a_tilted_surface():
+def test_a_python_material_is_refused_on_a_tilted_surface_too():
+    """A medium given by Python callables alone cannot run inside MuJoCo's step, whatever the
+    surface: the engine says so when the model is loaded."""
     slope_xml = '<numeric name="mjrft:surface_slope" data="10 0"/>'
-    m = mujoco.MjModel.from_xml_string(scene(slope_xml, SPHERE))
     glass = Material.preset("glass_beads")
     callables = Material.from_callables(
         glass.fourier.alpha_x, glass.fourier.alpha_z, glass.zeta, name="glass as callables"
     )
-    with pytest.raises(SceneError, match="flat surface only"):
-        GranularField(m, material=callables)
+    with pytest.raises(SceneError, match="given by Python callables alone cannot run"):
+        mjrft.load_model(scene(slope_xml, SPHERE), material=callables)
 
 
 def test_a_batch_on_a_height_field_gives_each_copy_the_explicit_wrench():
-    """BatchedField reads the same surface: every copy's wrench equals the explicit path's on a
-    single MjData in that copy's state."""
-    from mjrft.batch import BatchedField
+    """mujoco.batch steps the plugin's model with the same surface: every copy's step equals
+    mj_step on a single MjData in that copy's state, and its wrench the explicit wrench of
+    that state."""
+    from mujoco.batch import Batch
 
     rng = np.random.default_rng(5)
     asset = hfield_asset(5, 6, rng.uniform(size=(5, 6)), "0.3 0.2 0.02 0.01")
-    m = mujoco.MjModel.from_xml_string(scene(
+    m = mjrft.load_model(scene(
         '<text name="mjrft:surface_hfield" data="dune"/>', SPHERE, asset, hfield_geom()
-    ))  # fmt: skip
-    fld = GranularField(m, low_speed="off")
-    bf = BatchedField(fld, nsim=3, nthread=1)
-    try:
-        bf.reset()
-        qpos, qvel = bf.batch.bind("qpos"), bf.batch.bind("qvel")
-        qpos[:, :3] = [[0.0, 0.0, 0.012], [0.1, -0.05, 0.015], [-0.1, 0.1, 0.02]]
-        qvel[:, 2] = -0.1
-        bf.forward()
-        starts = [(np.array(qpos[i]), np.array(qvel[i])) for i in range(3)]
-        bf.step(1)  # the wrench of each copy's state at the start of the step
-        for i, (q, v) in enumerate(starts):
-            d = mujoco.MjData(m)
-            d.qpos[:], d.qvel[:] = q, v
-            mujoco.mj_forward(m, d)
-            one = GranularField(m, low_speed="off").wrench(d)
-            np.testing.assert_array_equal(bf.wrench[i], one)
-        assert np.all(np.abs(bf.wrench[:, 1, 2]) > 0)  # each copy is in the medium
-    finally:
-        bf.close()
+    ), low_speed="off")  # fmt: skip
+    fld = GranularField(m)
+    batch = Batch(m, nsim=3, nthread=1, persistent=True)
+    batch.reset()
+    qpos, qvel = batch.bind("qpos"), batch.bind("qvel")
+    qpos[:, :3] = [[0.0, 0.0, 0.012], [0.1, -0.05, 0.015], [-0.1, 0.1, 0.02]]
+    qvel[:, 2] = -0.1
+    batch.forward(stage=mujoco.mjtStage.mjSTAGE_VEL.value)
+    starts = [(np.array(qpos[i]), np.array(qvel[i])) for i in range(3)]
+    batch.step(nstep=1)  # the wrench of each copy's state at the start of the step
+    for i, (q, v) in enumerate(starts):
+        copy = batch.get_data(i)
+        d = mujoco.MjData(m)
+        d.qpos[:], d.qvel[:] = q, v
+        mujoco.mj_forward(m, d)
+        np.testing.assert_array_equal(fld.wrench_of(copy), fld.wrench(d))
+        assert abs(fld.wrench_of(copy)[1, 2]) > 0  # the copy is in the medium
+        mujoco.mj_step(m, d)
+        np.testing.assert_array_equal(copy.qpos, d.qpos)
+        np.testing.assert_array_equal(copy.qvel, d.qvel)
 
 
 def test_a_recording_draws_the_surface_it_simulates(tmp_path):
@@ -231,9 +292,7 @@ def test_a_recording_draws_the_surface_it_simulates(tmp_path):
     pytest.importorskip("rerun")
     from mjrft.app import viz
 
-    m = mujoco.MjModel.from_xml_string(
-        scene('<numeric name="mjrft:surface_slope" data="15 30"/>', SPHERE)
-    )
+    m = mjrft.load_model(scene('<numeric name="mjrft:surface_slope" data="15 30"/>', SPHERE))
     fld = GranularField(m)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
@@ -253,7 +312,6 @@ def test_run_figures_plot_the_depth_below_the_local_surface():
     a CoM moving along a tilted plane at a constant local depth has no depth range, so the
     figure uses its horizontal travel instead."""
     from mjrft.app import report
-    from mjrft.core import surface
 
     plane = surface.plane(0.0, np.radians(20.0), 0.0)
     x = np.linspace(0.0, 0.1, 50)

@@ -1,4 +1,4 @@
-"""The 3D-RFT of Agarwal, Goldman & Kamrin: the second force model, compiled.
+"""The 3D-RFT of Agarwal, Goldman & Kamrin: the second force model, its constants and parameters.
 
 S. Agarwal, D. I. Goldman, K. Kamrin, "Mechanistic framework for reduced-order models in soft
 materials: Application to three-dimensional granular intrusion", PNAS 120 (2023), e2214017120
@@ -30,14 +30,12 @@ not be checked against the paper's supplement here; a table in an Isaac Lab fork
 to differ in two entries (C2[17], C3[16] in this ordering).
 
 Dissipative by construction: alpha_n . v = -|alpha . n| (n . v) < 0 for a leading element,
-and alpha_t . v <= 0 after the turn.
+and alpha_t . v <= 0 after the turn. The C++ engine evaluates it (engine/law.cc, the kernel's
+second model) from the parameter vector built here (``parameters``).
 """
 
 from __future__ import annotations
 
-import math
-
-import numba
 import numpy as np
 
 #: Monomial order of f1, f2, f3: 1, x1, x2, x3, x1^2, x2^2, x3^2, x1 x2, x2 x3, x3 x1, x1^3,
@@ -61,7 +59,6 @@ GRAVITY = 9.81
 #: A unit vector's horizontal part shorter than this counts as none (vertical motion or normal):
 #: the local frame then comes from the other vector, or world x (the source's threshold).
 HORIZONTAL_EPS = 1e-10
-_JIT = {"cache": True, "error_model": "numpy"}
 
 
 def xi_n(rho_c: float, mu_int: float, gravity: float = GRAVITY) -> float:
@@ -70,80 +67,10 @@ def xi_n(rho_c: float, mu_int: float, gravity: float = GRAVITY) -> float:
 
 
 def parameters(xi: float, mu_surf: float) -> np.ndarray:
-    """(SIZE,) parameter vector of the compiled model (layout: XI_N, MU_SURF, COEF0) for scale
+    """(SIZE,) parameter vector of the engine's model (layout: XI_N, MU_SURF, COEF0) for scale
     xi [N/m^3] (``xi_n``) and intruder-medium friction mu_surf."""
     out = np.empty(SIZE)
     out[XI_N] = xi
     out[MU_SURF] = mu_surf
     out[COEF0:] = np.concatenate([C1, C2, C3])
     return out
-
-
-@numba.njit(inline="always", **_JIT)
-def _cubic(p, at, x1, x2, x3):
-    """sum_k p[at + k] T_k(x1, x2, x3) in the monomial order of C1."""
-    return (
-        p[at] + p[at + 1] * x1 + p[at + 2] * x2 + p[at + 3] * x3
-        + p[at + 4] * x1 * x1 + p[at + 5] * x2 * x2 + p[at + 6] * x3 * x3
-        + p[at + 7] * x1 * x2 + p[at + 8] * x2 * x3 + p[at + 9] * x3 * x1
-        + p[at + 10] * x1 * x1 * x1 + p[at + 11] * x2 * x2 * x2 + p[at + 12] * x3 * x3 * x3
-        + p[at + 13] * x1 * x2 * x2 + p[at + 14] * x2 * x1 * x1 + p[at + 15] * x2 * x3 * x3
-        + p[at + 16] * x3 * x2 * x2 + p[at + 17] * x3 * x1 * x1 + p[at + 18] * x1 * x3 * x3
-        + p[at + 19] * x1 * x2 * x3
-    )  # fmt: skip
-
-
-@numba.njit(**_JIT)
-def evaluate(buf, k, p):
-    """Forces on k gathered elements (rows 0-8 of buf, ``mjrft.core.kernel``) into rows 9-11.
-
-    Rows: 0-2 unit outward normal n, 5-7 velocity w (any scale), 8 depth * area [m^3]; world
-    frame, z up. p: (SIZE,) ``parameters``. Every gathered element leads (n . w > 0).
-    """
-    xi, mu = p[XI_N], p[MU_SURF]
-    for j in range(k):
-        nx, ny, nz = buf[0, j], buf[1, j], buf[2, j]
-        wx, wy, wz = buf[5, j], buf[6, j], buf[7, j]
-        inv = 1.0 / math.sqrt(wx * wx + wy * wy + wz * wz)
-        vx, vy, vz = wx * inv, wy * inv, wz * inv
-        vh, nh = math.sqrt(vx * vx + vy * vy), math.sqrt(nx * nx + ny * ny)  # unit vectors
-        if vh > HORIZONTAL_EPS:
-            rx, ry = vx / vh, vy / vh
-        elif nh > HORIZONTAL_EPS:
-            rx, ry = nx / nh, ny / nh
-        else:
-            rx, ry = 1.0, 0.0
-        tx, ty = -ry, rx  # theta = z x r
-        # The angles' sines and cosines from components (no trigonometric calls):
-        # beta = -+acos(nz) or +-(pi - acos(nz)) by the signs of n . r and nz, so cos beta =
-        # |nz| and |sin beta| = |n_h|; gamma = +-acos(v . r), + when moving down; psi =
-        # atan((n . theta) / (n . r)) in (-pi/2, pi/2), so cos psi >= 0.
-        nr, nt = nx * rx + ny * ry, nx * tx + ny * ty
-        cb = abs(nz)
-        sb = -nh if (nr >= 0.0) == (nz >= 0.0) else nh
-        cg = vx * rx + vy * ry
-        sg = math.sqrt(max(0.0, 1.0 - cg * cg))
-        if vz > 0.0:
-            sg = -sg
-        cp, sp = 1.0, 0.0
-        if nh > HORIZONTAL_EPS and nr != 0.0:
-            inv_h = 1.0 / math.sqrt(nr * nr + nt * nt)
-            cp = abs(nr) * inv_h
-            sp = nt * inv_h if nr > 0.0 else -nt * inv_h  # tan psi cos psi
-        x1, x2, x3 = sg, cb, cp * cg * sb + sg * cb
-        f1 = _cubic(p, COEF0, x1, x2, x3)
-        f2 = _cubic(p, COEF0 + NTERMS, x1, x2, x3)
-        f3 = _cubic(p, COEF0 + 2 * NTERMS, x1, x2, x3)
-        ar = f1 * sb * cp + f2 * cg
-        at = f1 * sb * sp
-        gx, gy, gz = ar * rx + at * tx, ar * ry + at * ty, -f1 * cb - f2 * sg - f3
-        an = -(gx * nx + gy * ny + gz * nz)  # alpha . (-n)
-        ux, uy, uz = gx + an * nx, gy + an * ny, gz + an * nz  # tangential part
-        if ux * vx + uy * vy + uz * vz > 0.0:  # turned to oppose the motion
-            ux, uy, uz = -ux, -uy, -uz
-        mag_n, mag_t = abs(an), math.sqrt(ux * ux + uy * uy + uz * uz)
-        cap = 1.0 if mu * mag_n >= mag_t else mu * mag_n / mag_t
-        s = xi * buf[8, j]
-        buf[9, j] = s * (-mag_n * nx + cap * ux)
-        buf[10, j] = s * (-mag_n * ny + cap * uy)
-        buf[11, j] = s * (-mag_n * nz + cap * uz)

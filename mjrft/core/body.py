@@ -2,9 +2,10 @@
 
 This generalises what the authors' MATLAB ``rft_3D_body`` does: any element set, any pose, any
 point about which moments are taken, and whole prescribed trajectories at once, with the
-kernel's surface quadrature (``mjrft.core.quadrature``). Fourier-form media run on the compiled
-kernel (one thread, no BLAS, whatever the machine's load); for media given as Python callables
-the kernel places the quadrature points and the NumPy evaluation gives their forces.
+kernel's surface quadrature (``mjrft.core.quadrature``). Media given by coefficients run on the
+C++ engine's kernel (``mjrft.core.engine``; one thread, no BLAS, whatever the machine's load);
+for media given as Python callables the kernel places the quadrature points and the NumPy
+evaluation gives their forces.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from mjrft.core import kernel, surface
+from mjrft.core import engine, surface
 from mjrft.core.elements import ElementSet
 from mjrft.core.material import Material
 from mjrft.core.rft import quadrature_forces
@@ -111,26 +112,22 @@ def _trajectory(elements, positions, rotations, lin_vels, ang_vels, points, mate
                 surface_z) -> np.ndarray:  # fmt: skip
     """(T, 6) wrenches from the kernel's quadrature (one thread, no BLAS); inputs checked.
     Media given by Python callables: the kernel places the quadrature points, NumPy evaluates."""
-    c = np.ascontiguousarray
-    out = np.zeros((len(positions), 6))
     reach, patch = elements.quadrature
-    cent, norm, area = c(elements.centroids), c(elements.normals), c(elements.areas)
+    cent, norm, area = elements.centroids, elements.normals, elements.areas
     if material.compiled:
-        kernel.trajectory(
+        return engine.trajectory(
             cent, norm, area, reach, patch, material.kernel_coefficients, material.alpha_y0,
-            material.zeta, float(surface_z), c(rotations), c(positions), c(lin_vels),
-            c(ang_vels), c(points), out,
+            material.zeta, float(surface_z), rotations, positions, lin_vels, ang_vels, points,
         )  # fmt: skip
-        return out
+    out = np.zeros((len(positions), 6))
     flat = surface.flat(float(surface_z))
     n = len(area)
-    scratch, no_region = np.empty((n, 3)), np.zeros((2, 3))
+    no_coef = np.zeros(engine.N_COMBINED)  # read by no force model: rows only
     for t in range(len(positions)):
-        rows = np.zeros((n, kernel.ROW))
-        kernel.body_wrench(
-            cent, norm, area, reach, patch, 0, n, np.zeros(18), 0.0, 0.0, flat.prm, flat.grid,
-            False, no_region, np.zeros(1), c(rotations[t]), c(positions[t]), c(ang_vels[t]),
-            c(lin_vels[t]), c(positions[t]), c(points[t]), np.zeros(6), scratch, rows,
+        rows = np.zeros((n, engine.ROW))
+        engine.body_wrench(
+            cent, norm, area, reach, patch, no_coef, 0.0, 0.0, flat.prm, flat.grid, None, None,
+            rotations[t], positions[t], ang_vels[t], lin_vels[t], positions[t], points[t], rows,
         )  # fmt: skip
         f = quadrature_forces(rows, material)
         out[t, :3] = f.sum(axis=0)

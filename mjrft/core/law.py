@@ -1,4 +1,4 @@
-"""Constants of the 3D RFT element law shared by its NumPy and compiled evaluations.
+"""Constants of the 3D RFT element law shared by its NumPy and C++ (engine/law.h) evaluations.
 
 Treers, Cao & Stuart, RA-L 6(2) 2021 (docs/design.md section 2): the frame switch for nearly
 horizontal plates and the fitted scaling functions f1, f23 of the velocity decomposition.

@@ -5,7 +5,7 @@ of that surface its corners span. The element then carries, instead of the facet
 surface normal at its corners and at its centroid's image on the surface, and the patch's
 area (shape frame throughout). The facet normal of a chord triangle differs from the surface
 normal at the centroid by O(h) (h the edge length); the surface normal there by O(h^2), which
-is what makes the quadrature of ``mjrft.core.kernel`` second order (docs/accuracy.md).
+is what makes the kernel's quadrature (``mjrft.core.engine``) second order (docs/accuracy.md).
 
 Each shape is a few smooth pieces (``piece``: which one a face lies on, from its corners), each
 with a ``normal`` and a ``project`` onto the surface (a bijection from the triangle's plane

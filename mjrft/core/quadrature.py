@@ -1,6 +1,6 @@
 """Per-element data of the surface quadrature: each triangle's corners and corner normals.
 
-The kernel (``mjrft.core.kernel.body_wrench``) evaluates an element at its centroid with its
+The kernel (``mjrft.core.engine.body_wrench``) evaluates an element at its centroid with its
 patch's normal and area, as a one-point rule, except where that rule is first order: where
 the free surface crosses the triangle, or where the leading boundary n . v = 0 does. There it
 integrates over the part of the triangle that is both submerged and leading, with depth and

@@ -3,15 +3,17 @@
 Implements docs/design.md section 2 (Treers, Cao & Stuart, RA-L 2021, on Li et al., Science 2013).
 Angles beta and gamma never exist here for Fourier-form media: their sines and cosines are
 normalised vector components and the Fourier terms follow from angle-addition identities. User
-callables receive explicit angles. This module imports no mujoco and holds no state; it is the one
-place a compiled kernel replaces.
+callables receive explicit angles. Media given by coefficients (``Material.compiled``) are
+evaluated by the C++ engine's kernel (``mjrft.core.engine``, engine/kernel.h), the one the MuJoCo
+plugin runs; the NumPy evaluation here is its reference and serves media given as callables.
+This module imports no mujoco and holds no state.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mjrft.core import kernel
+from mjrft.core import engine
 from mjrft.core.law import HORIZONTAL_PLATE_NZ, f1, f23
 from mjrft.core.material import HARMONICS, Material
 
@@ -38,10 +40,10 @@ def _as_rows(name: str, x: np.ndarray, n: int | None) -> np.ndarray:
 
 
 _INPUT_NAMES = {
-    kernel.BAD_POS: "pos",
-    kernel.BAD_NORMAL: "normal",
-    kernel.BAD_AREA: "area",
-    kernel.BAD_VEL: "vel",
+    engine.BAD_POS: "pos",
+    engine.BAD_NORMAL: "normal",
+    engine.BAD_AREA: "area",
+    engine.BAD_VEL: "vel",
 }
 
 
@@ -61,14 +63,14 @@ def _shaped(pos, normal, area, vel, surface_z):
 
 
 def _raise_bad(code: int, i: int, pos, normal, area, vel) -> None:
-    """ValueError naming element i's bad input (codes of kernel.checked_unit_normals)."""
+    """ValueError naming element i's bad input (codes of engine.checked_unit_normals)."""
     if code in _INPUT_NAMES:
         name = _INPUT_NAMES[code]
         value = {"pos": pos, "normal": normal, "area": area, "vel": vel}[name][i]
         raise ValueError(f"element_forces: {name} of element {i} is not finite: {value}")
-    if code == kernel.NEGATIVE_AREA:
+    if code == engine.NEGATIVE_AREA:
         raise ValueError(f"element_forces: area of element {i} is negative ({area[i]}); need >= 0")
-    if code == kernel.ZERO_NORMAL:
+    if code == engine.ZERO_NORMAL:
         raise ValueError(f"element_forces: normal of element {i} has zero length")
 
 
@@ -100,11 +102,10 @@ def element_forces(
     without checks, for arrays you trust.
     """
     pos, normal, area, vel, surface_z = _shaped(pos, normal, area, vel, surface_z)
-    bad, nonunit = kernel.input_flags(pos, normal, area, vel)
+    bad, nonunit = engine.input_flags(pos, normal, area, vel)
     n_hat = normal
     if bad or nonunit:  # name the culprit, or normalise (unit normals skip this pass)
-        n_hat = np.empty_like(pos)
-        code, i = kernel.checked_unit_normals(pos, normal, area, vel, n_hat)
+        n_hat, code, i = engine.checked_unit_normals(pos, normal, area, vel)
         _raise_bad(code, i, pos, normal, area, vel)
     return unit_normal_forces(pos, n_hat, area, vel, material, surface_z)
 
@@ -123,17 +124,16 @@ def unit_normal_forces(
     and `n_hat` unit normals, world frame.
     """
     if material.compiled:
-        out = np.empty_like(pos)
-        kernel.forces(
+        out, _ = engine.forces(
             pos, n_hat, area, vel, material.kernel_coefficients, material.alpha_y0,
-            material.zeta, surface_z, out,
+            material.zeta, surface_z,
         )  # fmt: skip
         return out
     return numpy_forces(pos, n_hat, area, vel, material, surface_z)
 
 
 def quadrature_forces(rows: np.ndarray, material: Material) -> np.ndarray:
-    """(n, 3) forces [N] at the quadrature points of ``kernel.body_wrench``'s rows (n, ROW):
+    """(n, 3) forces [N] at the quadrature points of ``engine.body_wrench``'s rows (n, ROW):
     point, unit normal, velocity, weight W = depth x area [m^3], world frame (W = 0: none)."""
     at = rows[:, :3].copy()
     at[:, 2] = -1.0  # depth 1 below a surface at 0: the weight stands for the area
@@ -155,7 +155,7 @@ def numpy_forces(
     surface_z: float,
 ) -> np.ndarray:
     """The vectorised NumPy evaluation (any material, callables included); args as
-    ``unit_normal_forces``. The compiled kernel is tested against it."""
+    ``unit_normal_forces``. The engine's kernel is tested against it."""
     pos = np.ascontiguousarray(pos, dtype=np.float64)
     out = np.zeros_like(pos)
     depth = surface_z - pos[:, 2]
