@@ -75,6 +75,152 @@ inline f64 Cubic(const f64* p, f64 x1, f64 x2, f64 x3) {
          p[19] * x1 * x2 * x3;
 }
 
+// The frame of docs/design.md 2.2 for one gathered element, from its unit normal's
+// components and h, w (Gather): unit e2 = (ex, ey, 0), e1 = e2 x z, v^ = w / |w|.
+struct Frame {
+  f64 ex, ey;  // e2
+  f64 a;       // v^ . e1
+  f64 vn;      // |v23|, the in-plane speed fraction
+  f64 cg, sg;  // cos and sin gamma, gamma = -atan2(v^ . z, v^ . e2); (1, 0) at no in-plane speed
+  f64 n2;      // n . e2
+};
+
+// Frame of an element: normal (nx, ny), h (hx, hy), velocity w. Three square roots and one
+// division; no angle is formed.
+inline Frame FrameOf(f64 nx, f64 ny, f64 hx, f64 hy, f64 wx, f64 wy, f64 wz) {
+  f64 h2 = std::fma(hx, hx, hy * hy);
+  f64 s2 = std::fma(wx, wx, std::fma(wy, wy, wz * wz));
+  f64 big_a = std::sqrt(h2);     // |h|
+  f64 t = std::sqrt(s2 * h2);    // |w| |h|
+  f64 p = std::fma(wx, hy, -(wy * hx));  // (w . e1) |h|, e1 = e2 x z
+  f64 q = std::fma(wx, hx, wy * hy);     // (w . e2) |h|
+  f64 r = std::sqrt(std::fma(q, q, wz * wz * h2));  // |w| |h| |v23|
+  bool moving = r > kVnMin * t;
+  f64 rg = moving ? r : t;
+  f64 x = 1.0 / (t * big_a * rg);  // the one division of the frame: 1/t, 1/|h|, 1/rg below
+  f64 inv_t = big_a * rg * x;
+  f64 inv_a = t * rg * x;
+  f64 inv_r = t * big_a * x;
+  Frame f;
+  f.ex = hx * inv_a;
+  f.ey = hy * inv_a;
+  f.a = p * inv_t;
+  f.vn = r * inv_t;
+  f.cg = moving ? q * inv_r : 1.0;  // gamma = -atan2(v^.z, v^.e2)
+  f.sg = moving ? -wz * big_a * inv_r : 0.0;
+  f.n2 = std::fma(nx, f.ex, ny * f.ey);
+  return f;
+}
+
+// The scaling functions of the 3D decomposition (docs/design.md 2.7) at |v^ . e1| = |a| and
+// |v23| = vn: f1, and f23 / kC23 = atanh(slope vn - shift) + atanh(shift).
+struct Scalings {
+  f64 f1, t23;
+};
+
+inline Scalings ScalingsOf(f64 a, f64 vn) {
+  // f1 = C1 (tanh(slope |a| - shift) + tanh(shift)), tanh(z) = 1 - 2 / (exp(2z) + 1).
+  f64 e1 = ExpF1(std::fma(2.0 * kF1Slope, std::fabs(a), -2.0 * kF1Shift)) + 1.0;
+  // f23 = C23 (atanh(u) + atanh(shift)), atanh(u) = log(num / den) / 2.
+  f64 num = std::fma(kF23Slope, vn, 1.0 - kF23Shift);  // 1 + u
+  f64 den = std::fma(-kF23Slope, vn, 1.0 + kF23Shift);  // 1 - u
+  f64 lg = 0.0;
+  #pragma GCC unroll 16
+  for (const LogStep& st : kLogSteps) {
+    bool hit = st.below ? num < st.threshold * den : num > st.threshold * den;
+    num = hit ? num * st.factor : num;
+    lg = hit ? lg - st.log2 : lg;
+  }
+  f64 y = 1.0 / ((num + den) * e1);  // the second division: 1 / (num + den) and 1 / e1
+  f64 sr = (num - den) * e1 * y;
+  f64 s_sq = sr * sr;
+  f64 ser = 1.0 / (2 * kLogTerms - 1);
+  #pragma GCC unroll 16
+  for (int i = kLogTerms - 2; i >= 0; i--) ser = std::fma(ser, s_sq, 1.0 / (2 * i + 1));
+  f64 log_r = std::fma(lg, kLn2, 2.0 * sr * ser);
+  Scalings out;
+  out.f1 = kC1 * (std::fma(-2.0 * (num + den), y, 1.0) + kTanhF1Shift);
+  out.t23 = std::fma(0.5, log_r, kAtanhF23Shift);
+  return out;
+}
+
+// The force [N] on an element from its frame, scalings and generic alphas; s = zeta d dA [N]:
+// docs/design.md 2.8, F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+struct Force {
+  f64 x, y, z;
+};
+
+inline Force ForceOf(const Frame& fr, const Scalings& sc, f64 ax, f64 ay, f64 az, f64 s) {
+  f64 g23 = s * kC23 * sc.t23;
+  f64 sgn = fr.a > 0.0 ? 1.0 : (fr.a < 0.0 ? -1.0 : 0.0);
+  f64 g1 = -s * sc.f1 * ay * sgn;
+  f64 gx = -g23 * ax;
+  return {std::fma(g1, fr.ey, gx * fr.ex), std::fma(-g1, fr.ex, gx * fr.ey), g23 * az};
+}
+
+// Cubic Hermite weights on [0, 1] at s: of the values at 0 and 1 (w0, w1) and of the slopes
+// (times the step) at 0 and 1 (d0, d1).
+struct Hermite {
+  f64 w0, w1, d0, d1;
+};
+
+inline Hermite HermiteAt(f64 s) {
+  f64 t = 1.0 - s;
+  f64 s2 = s * s, t2 = t * t;
+  return {(1.0 + 2.0 * s) * t2, (3.0 - 2.0 * s) * s2, s * t2, -s2 * t};
+}
+
+// The cell of a table axis (nodes x0 + i h, i < n) holding x, and x's position in it; an x off
+// the axis (round-off at its ends) takes the edge cell.
+inline i64 Cell(f64 x, f64 x0, f64 inv_h, i64 n, f64* s) {
+  f64 u = (x - x0) * inv_h;
+  f64 c = std::fmin(std::fmax(std::floor(u), 0.0), static_cast<f64>(n - 2));
+  *s = u - c;
+  return static_cast<i64>(c);
+}
+
+// Bicubic Hermite interpolation on the four nodes (n00, n01 at (i, j), (i, j + 1); n10, n11
+// at (i + 1, ...)) of one function (value, beta, gamma and cross derivative, scaled by h).
+inline f64 Bicubic(const f64* n00, const f64* n01, const f64* n10, const f64* n11,
+                   const Hermite& b, const Hermite& g) {
+  // Along gamma at beta nodes i and i + 1: the value and the beta slope.
+  f64 v0 = g.w0 * n00[0] + g.d0 * n00[2] + g.w1 * n01[0] + g.d1 * n01[2];
+  f64 s0 = g.w0 * n00[1] + g.d0 * n00[3] + g.w1 * n01[1] + g.d1 * n01[3];
+  f64 v1 = g.w0 * n10[0] + g.d0 * n10[2] + g.w1 * n11[0] + g.d1 * n11[2];
+  f64 s1 = g.w0 * n10[1] + g.d0 * n10[3] + g.w1 * n11[1] + g.d1 * n11[3];
+  return b.w0 * v0 + b.d0 * s0 + b.w1 * v1 + b.d1 * s1;
+}
+
+constexpr f64 kPi = 0x1.921fb54442d18p+1;
+constexpr f64 kHalfPi = 0x1.921fb54442d18p+0;
+constexpr f64 kQuarterPi = 0x1.921fb54442d18p-1;
+constexpr f64 kTanEighthPi = 0x1.a827999fcef32p-2;  // sqrt(2) - 1
+// atan on [-tan(pi/8), tan(pi/8)] by its Taylor series to t^(2 kAtanTerms - 1): the first
+// omitted term is below 3e-17.
+constexpr int kAtanTerms = 19;
+
+// atan2(y, x) [rad] without libm, so that loops over it vectorise: within 4.5e-16 of libm's
+// (2 ulp at pi; measured on 2e7 random pairs), and the same at signed zeros (atan2(+-0, -0) =
+// +-pi, ...). One division: atan(min / max) is reduced to |t| <= tan(pi/8) by atan(m) = pi/4 +
+// atan((m - 1) / (m + 1)), then the quadrant.
+inline f64 Atan2(f64 y, f64 x) {
+  f64 ax = std::fabs(x), ay = std::fabs(y);
+  f64 mn = ay < ax ? ay : ax, mx = ay < ax ? ax : ay;
+  bool big = mn > kTanEighthPi * mx;
+  f64 num = big ? mn - mx : mn, den = big ? mn + mx : mx;
+  f64 t = den > 0.0 ? num / den : 0.0;
+  f64 t2 = t * t;
+  f64 p = 1.0 / (2 * kAtanTerms - 1);
+  #pragma GCC unroll 32
+  for (int i = kAtanTerms - 2; i >= 0; i--) {
+    p = std::fma(p, t2, (i % 2 ? -1.0 : 1.0) / (2 * i + 1));
+  }
+  f64 r = (big ? kQuarterPi : 0.0) + t * p;  // atan(mn / mx), in [0, pi/4]
+  r = ay > ax ? kHalfPi - r : r;
+  r = std::copysign(1.0, x) < 0.0 ? kPi - r : r;  // the sign bit, -0 included
+  return std::copysign(r, y);
+}
+
 }  // namespace
 
 void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
@@ -97,31 +243,11 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
   }
 #pragma GCC ivdep
   for (int j = 0; j < k; j++) {
-    f64 nx = bnx[j], ny = bny[j], nz = bnz[j];
-    f64 hx = bhx[j], hy = bhy[j];
-    f64 wx = bwx[j], wy = bwy[j], wz = bwz[j];
-    f64 h2 = std::fma(hx, hx, hy * hy);
-    f64 s2 = std::fma(wx, wx, std::fma(wy, wy, wz * wz));
-    f64 big_a = std::sqrt(h2);     // |h|
-    f64 t = std::sqrt(s2 * h2);    // |w| |h|
-    f64 p = std::fma(wx, hy, -(wy * hx));  // (w . e1) |h|, e1 = e2 x z
-    f64 q = std::fma(wx, hx, wy * hy);     // (w . e2) |h|
-    f64 r = std::sqrt(std::fma(q, q, wz * wz * h2));  // |w| |h| |v23|
-    bool moving = r > kVnMin * t;
-    f64 rg = moving ? r : t;
-    f64 x = 1.0 / (t * big_a * rg);  // the one division of the frame: 1/t, 1/|h|, 1/rg below
-    f64 inv_t = big_a * rg * x;
-    f64 inv_a = t * rg * x;
-    f64 inv_r = t * big_a * x;
-    f64 ex = hx * inv_a;
-    f64 ey = hy * inv_a;
-    f64 a = p * inv_t;   // v^ . e1
-    f64 vn = r * inv_t;  // |v23|
-    f64 cg = moving ? q * inv_r : 1.0;  // gamma = -atan2(v^.z, v^.e2)
-    f64 sg = moving ? -wz * big_a * inv_r : 0.0;
+    f64 nz = bnz[j];
+    Frame fr = FrameOf(bnx[j], bny[j], bhx[j], bhy[j], bwx[j], bwy[j], bwz[j]);
     // beta = atan2(nz, n2) + pi/2: cos 2 beta = (nz^2 - n2^2) / rho, sin 2 beta = -2 nz n2 / rho
     // with rho = n2^2 + nz^2 = 1 - (n . e1)^2 within 2e-3 of 1 (docs/design.md 2.2 frame).
-    f64 n2 = std::fma(nx, ex, ny * ey);
+    f64 n2 = fr.n2;
     f64 eps = 1.0 - std::fma(n2, n2, nz * nz);
     f64 inv_rho = 1.0;
     #pragma GCC unroll 16
@@ -130,6 +256,7 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
     f64 s2b = -2.0 * nz * n2 * inv_rho;
     // The Fourier sums by angle addition: terms 1, cos 2b, sin 2b, cos g, sin g and the four
     // products, in the order of the combined coefficients.
+    f64 cg = fr.cg, sg = fr.sg;
     f64 p1 = c2 * cg, p2 = s2b * sg, p3 = c2 * sg, p4 = s2b * cg;
     f64 az = std::fma(caz[1], c2, caz[0]);
     f64 ax = std::fma(cax[1], c2, cax[0]);
@@ -147,35 +274,67 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
     ax = std::fma(cax[7], p3, ax);
     az = std::fma(caz[8], p4, az);
     ax = std::fma(cax[8], p4, ax);
-    // f1 = C1 (tanh(slope |a| - shift) + tanh(shift)), tanh(z) = 1 - 2 / (exp(2z) + 1).
-    f64 e1 = ExpF1(std::fma(2.0 * kF1Slope, std::fabs(a), -2.0 * kF1Shift)) + 1.0;
-    // f23 = C23 (atanh(u) + atanh(shift)), atanh(u) = log(num / den) / 2.
-    f64 num = std::fma(kF23Slope, vn, 1.0 - kF23Shift);  // 1 + u
-    f64 den = std::fma(-kF23Slope, vn, 1.0 + kF23Shift);  // 1 - u
-    f64 lg = 0.0;
-    #pragma GCC unroll 16
-    for (const LogStep& st : kLogSteps) {
-      bool hit = st.below ? num < st.threshold * den : num > st.threshold * den;
-      num = hit ? num * st.factor : num;
-      lg = hit ? lg - st.log2 : lg;
-    }
-    f64 y = 1.0 / ((num + den) * e1);  // the second division: 1 / (num + den) and 1 / e1
-    f64 sr = (num - den) * e1 * y;
-    f64 s_sq = sr * sr;
-    f64 ser = 1.0 / (2 * kLogTerms - 1);
-    #pragma GCC unroll 16
-    for (int i = kLogTerms - 2; i >= 0; i--) ser = std::fma(ser, s_sq, 1.0 / (2 * i + 1));
-    f64 log_r = std::fma(lg, kLn2, 2.0 * sr * ser);
-    f64 f1 = kC1 * (std::fma(-2.0 * (num + den), y, 1.0) + kTanhF1Shift);
-    // docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+    Force f = ForceOf(fr, ScalingsOf(fr.a, fr.vn), ax, ay, az, zeta * bda[j]);
+    fx[j] = f.x;
+    fy[j] = f.y;
+    fz[j] = f.z;
+  }
+}
+
+void EvaluateTabulated(Buf& buf, int k, const f64* co, f64 zeta) {
+  const f64* __restrict bnx = buf[kNx];
+  const f64* __restrict bny = buf[kNx + 1];
+  const f64* __restrict bnz = buf[kNx + 2];
+  const f64* __restrict bhx = buf[kHx];
+  const f64* __restrict bhy = buf[kHx + 1];
+  const f64* __restrict bwx = buf[kWx];
+  const f64* __restrict bwy = buf[kWx + 1];
+  const f64* __restrict bwz = buf[kWx + 2];
+  const f64* __restrict bda = buf[kDepthArea];
+  f64* __restrict fx = buf[kFx];
+  f64* __restrict fy = buf[kFx + 1];
+  f64* __restrict fz = buf[kFx + 2];
+  // 1. The frame, the scalings and the angles, one branch-free loop the compiler vectorises
+  // (as EvaluateTreers'). The angles as mjrft.core.rft forms them for callables: beta =
+  // atan2(n.z, n.e2) + pi/2, gamma = -atan2(v^.z, v^.e2) = atan2(sin gamma, cos gamma) (the
+  // same side of the cut at +-pi for either sign of zero).
+  alignas(64) f64 ex[kChunk], ey[kChunk], beta[kChunk], gamma[kChunk];
+  alignas(64) f64 g1[kChunk], g23[kChunk];  // -zeta d dA f1 sign(v^.e1); zeta d dA f23
+#pragma GCC ivdep
+  for (int j = 0; j < k; j++) {
+    Frame fr = FrameOf(bnx[j], bny[j], bhx[j], bhy[j], bwx[j], bwy[j], bwz[j]);
+    Scalings sc = ScalingsOf(fr.a, fr.vn);
     f64 s = zeta * bda[j];
-    f64 g23 = s * kC23 * std::fma(0.5, log_r, kAtanhF23Shift);
-    f64 sgn = a > 0.0 ? 1.0 : (a < 0.0 ? -1.0 : 0.0);
-    f64 g1 = -s * f1 * ay * sgn;
-    f64 gx = -g23 * ax;
-    fx[j] = std::fma(g1, ey, gx * ex);
-    fy[j] = std::fma(-g1, ex, gx * ey);
-    fz[j] = g23 * az;
+    f64 sgn = fr.a > 0.0 ? 1.0 : (fr.a < 0.0 ? -1.0 : 0.0);
+    ex[j] = fr.ex;
+    ey[j] = fr.ey;
+    beta[j] = Atan2(bnz[j], fr.n2) + kHalfPi;
+    gamma[j] = Atan2(fr.sg, fr.cg);
+    g1[j] = -s * sc.f1 * sgn;
+    g23[j] = s * kC23 * sc.t23;
+  }
+  // 2. The alphas, scalar: each element reads its own table cells.
+  const i64 nb = static_cast<i64>(co[kTabNb]), ng = static_cast<i64>(co[kTabNg]);
+  const f64 beta0 = co[kTabBeta0], gamma0 = co[kTabGamma0], inv_h = 1.0 / co[kTabStep];
+  const f64* nodes = co + kTabHeader;
+  const f64* ay_nodes = nodes + kTabNode * nb * ng;
+  for (int j = 0; j < k; j++) {
+    f64 s, u;
+    i64 i = Cell(beta[j], beta0, inv_h, nb, &s);
+    i64 c = Cell(gamma[j], gamma0, inv_h, ng, &u);
+    Hermite hb = HermiteAt(s), hg = HermiteAt(u);
+    const f64* n00 = nodes + kTabNode * (i * ng + c);
+    const f64* n10 = n00 + kTabNode * ng;
+    f64 ax = Bicubic(n00, n00 + kTabNode, n10, n10 + kTabNode, hb, hg);
+    f64 az = Bicubic(n00 + 4, n00 + kTabNode + 4, n10 + 4, n10 + kTabNode + 4, hb, hg);
+    const f64* y = ay_nodes + 2 * i;
+    f64 ay = hb.w0 * y[0] + hb.d0 * y[1] + hb.w1 * y[2] + hb.d1 * y[3];
+    // docs/design.md 2.8: F = zeta d dA [-f1 ay sign(v^.e1) e1 - f23 ax e2 + f23 az z].
+    f64 a1 = g1[j] * ay;
+    f64 gx = -g23[j] * ax;
+    fx[j] = std::fma(a1, ey[j], gx * ex[j]);
+    fy[j] = std::fma(-a1, ex[j], gx * ey[j]);
+    fz[j] = g23[j] * az;
   }
 }
 
@@ -245,10 +404,16 @@ void EvaluateAgarwal(Buf& buf, int k, const f64* p) {
 }
 
 void EvaluateModel(Buf& buf, int k, const f64* co, i64 ncoef, f64 ay, f64 zeta) {
-  if (ncoef == kAgarwalSize || ncoef == kAgarwalSize + 1) {
-    EvaluateAgarwal(buf, k, co);
-  } else {
-    EvaluateTreers(buf, k, co, ay, zeta);
+  switch (FormOf(co, ncoef)) {
+    case Form::kAgarwal:
+      EvaluateAgarwal(buf, k, co);
+      break;
+    case Form::kTabulated:
+      EvaluateTabulated(buf, k, co, zeta);
+      break;
+    case Form::kTreers:
+      EvaluateTreers(buf, k, co, ay, zeta);
+      break;
   }
 }
 

@@ -2,11 +2,12 @@
 //
 // The RFT element law on gathered elements (mjrft.core.kernel, mjrft.core.agarwal): the force
 // per element of a chunk whose elements were written, structure of arrays, into the rows of a
-// scratch buffer (Gather). Two force models, told apart by the length of their coefficients:
-// Treers, Cao & Stuart 2021 (the 18 combined Fourier coefficients of Li 2013's media,
-// docs/design.md section 2) and the 3D-RFT of Agarwal, Goldman & Kamrin 2023 (kAgarwalSize
-// parameters); either may carry the dynamic (inertial) term's lambda rho_c as one extra
-// coefficient, last.
+// scratch buffer (Gather). Three coefficient forms (FormOf): Treers, Cao & Stuart 2021 on the 18
+// combined Fourier coefficients of Li 2013's media (docs/design.md section 2) and the 3D-RFT of
+// Agarwal, Goldman & Kamrin 2023 (kAgarwalSize parameters), told apart by their lengths; and
+// Treers et al.'s law on a medium given by Python callables (Material.from_callables), carried
+// as a table of its alphas (kTabulatedTag first, then the layout below). Each may carry the
+// dynamic (inertial) term's lambda rho_c as one extra coefficient, last.
 //
 // EvaluateTreers is one branch-free loop the compiler vectorises: beta and gamma are never
 // formed (their sines and cosines are normalised vector components), the Fourier sums follow by
@@ -57,6 +58,44 @@ constexpr int kNCombined = 18;
 constexpr int kAgarwalXi = 0, kAgarwalMu = 1, kAgarwalCoef0 = 2, kAgarwalTerms = 20;
 constexpr int kAgarwalSize = kAgarwalCoef0 + 3 * kAgarwalTerms;
 constexpr f64 kAgarwalHorizontalEps = 1e-10;
+
+// A medium given by callables (Material.from_callables, Material.tabulated): its generic
+// alpha_x(beta, gamma) and alpha_z(beta, gamma) sampled at load on a grid of step h [rad] in both
+// angles, nodes beta_i = beta0 + i h (i < nb), gamma_j = gamma0 + j h (j < ng), with the
+// derivatives that make the interpolation bicubic Hermite (C1), and alpha_y(beta) on the same
+// beta nodes (cubic Hermite). Layout: the header (kTabHeader entries: tag, nb, ng, beta0,
+// gamma0, h), then node (i, j) at kTabHeader + kTabNode (i ng + j): alpha_x, h d/dbeta,
+// h d/dgamma, h^2 d2/dbeta dgamma, then the same four of alpha_z; then alpha_y node i at
+// kTabHeader + kTabNode nb ng + 2 i: alpha_y, h d/dbeta. The derivatives are scaled by h so the
+// interpolation needs no step. The grid covers the angles the frame produces (docs/design.md
+// 2.2, 2.4): gamma in [-pi, pi], beta in [0, pi] and, on nearly horizontal plates, up to
+// asin(sqrt(1 - kHorizontalPlateNz^2)) = 0.0447 rad beyond; callables need not be periodic, so
+// neither angle is wrapped (an angle off the grid, from round-off, extrapolates its edge cell).
+constexpr f64 kTabulatedTag = 3.0;
+enum TabHeader { kTabTag = 0, kTabNb = 1, kTabNg = 2, kTabBeta0 = 3, kTabGamma0 = 4, kTabStep = 5 };
+constexpr int kTabHeader = 8;
+constexpr int kTabNode = 8;
+constexpr int kTabMinNodes = 4;  // per angle: at least three cells
+
+// Length of a tabulated medium's coefficients without the dynamic term, nb x ng nodes.
+inline i64 TabulatedSize(i64 nb, i64 ng) { return kTabHeader + kTabNode * nb * ng + 2 * nb; }
+
+// The coefficient forms (Material.kernel_coefficients).
+enum class Form { kTreers, kAgarwal, kTabulated };
+
+// The form of coefficients co (ncoef,): Agarwal's by its lengths (kAgarwalSize, +1 with the
+// dynamic term), a table by its tag and a length that matches its header, else Treers'.
+inline Form FormOf(const f64* co, i64 ncoef) {
+  if (ncoef == kAgarwalSize || ncoef == kAgarwalSize + 1) return Form::kAgarwal;
+  if (ncoef > kAgarwalSize + 1 && co[kTabTag] == kTabulatedTag) {
+    f64 nb = co[kTabNb], ng = co[kTabNg];
+    if (nb >= kTabMinNodes && ng >= kTabMinNodes && nb * ng < 1e12) {  // sizes, not garbage
+      i64 size = TabulatedSize(static_cast<i64>(nb), static_cast<i64>(ng));
+      if (ncoef == size || ncoef == size + 1) return Form::kTabulated;
+    }
+  }
+  return Form::kTreers;
+}
 
 // max(a, b) and min(a, b) as the reference's compiled Python evaluates them: b if b > a (b < a)
 // else a, so a NaN argument is treated alike.
@@ -117,13 +156,29 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta);
 // (mjrft.core.agarwal): p (kAgarwalSize,) its parameters. Every gathered element leads.
 void EvaluateAgarwal(Buf& buf, int k, const f64* p);
 
-// The force model the coefficients co (ncoef,) are for: Agarwal's (kAgarwalSize parameters, +1
-// with the dynamic term) or Treers' (kNCombined, +1).
+// Forces (rows 9-11) on the k gathered elements of buf under Treers et al.'s law for a medium
+// given by callables: co its table (layout above), zeta [N/m^3]. The frame, f1 and f23 are
+// EvaluateTreers'; beta = atan2(n . z, n . e2) + pi/2 and gamma = -atan2(v^ . z, v^ . e2) as the
+// NumPy evaluation of callables forms them (mjrft.core.rft), and alpha_x, alpha_z, alpha_y
+// interpolated there. Interpolation error: at most h^4 / 384 (max |d4 alpha / d beta4| + max
+// |d4 alpha / d gamma4|) plus O(h^5) from the sampled derivatives (fourth-order differences);
+// for Li's generic medium on the default grid (h = pi / 64) 1.2e-7 of the largest |alpha|
+// (tests/test_tabulated.py). Two loops per chunk: the frame, f1, f23 and the angles (by an
+// atan2 without libm) in one the compiler vectorises, then a scalar one that reads each
+// element's table cells; about 2.5 times EvaluateTreers' time on random angles.
+void EvaluateTabulated(Buf& buf, int k, const f64* co, f64 zeta);
+
+// The force model the coefficients co (ncoef,) are for (FormOf): Agarwal's, a table, or Treers'
+// (ay: its constant alpha_y).
 void EvaluateModel(Buf& buf, int k, const f64* co, i64 ncoef, f64 ay, f64 zeta);
 
-// lambda rho_c [kg/m^3] of the dynamic term the coefficients carry, 0 if none.
+// lambda rho_c [kg/m^3] of the dynamic term the coefficients carry, 0 if none: one entry after
+// any form's own (kNCombined + 1, kAgarwalSize + 1, TabulatedSize + 1 entries).
 inline f64 DynamicCoefficient(const f64* co, i64 ncoef) {
   bool dyn = ncoef == kNCombined + 1 || ncoef == kAgarwalSize + 1;
+  if (!dyn && FormOf(co, ncoef) == Form::kTabulated) {
+    dyn = ncoef == TabulatedSize(static_cast<i64>(co[kTabNb]), static_cast<i64>(co[kTabNg])) + 1;
+  }
   return dyn ? co[ncoef - 1] : 0.0;
 }
 

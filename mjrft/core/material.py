@@ -27,6 +27,7 @@ from types import MappingProxyType
 import numpy as np
 
 from mjrft.core import agarwal
+from mjrft.core.law import HORIZONTAL_PLATE_NZ
 from mjrft.core.units import N_PER_CM3
 
 #: Force models (``Material.model``): Treers, Cao & Stuart 2021 on Li, Zhang & Goldman 2013
@@ -175,7 +176,11 @@ def _probe_grid() -> tuple[np.ndarray, np.ndarray]:
     return beta.ravel(), gamma.ravel()
 
 
-def _check_callable(fn: object, name: str, args: tuple[np.ndarray, ...]) -> None:
+def _check_callable(
+    fn: object, name: str, args: tuple[np.ndarray, ...], where: str = ""
+) -> np.ndarray:
+    """fn(*args) as float64, checked: the shape of args[0] and finite; ValueError naming name
+    (and where, e.g. "on the engine's table") otherwise."""
     if not callable(fn):
         raise ValueError(f"{name} must be callable, got {type(fn).__name__}")
     try:
@@ -185,16 +190,139 @@ def _check_callable(fn: object, name: str, args: tuple[np.ndarray, ...]) -> None
             f"{name} raised {type(exc).__name__}: {exc} when called with numpy arrays of shape "
             f"{args[0].shape}; it must accept arrays (wrap scalar code with numpy.vectorize)"
         ) from exc
-    out = np.asarray(out, dtype=np.float64) if not isinstance(out, np.ndarray) else out
+    try:
+        out = np.asarray(out, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} returned {type(out).__name__}, not numbers{where}") from exc
     if out.shape != args[0].shape:
         raise ValueError(
-            f"{name} returned shape {out.shape} for inputs of shape {args[0].shape}; "
+            f"{name} returned shape {out.shape} for inputs of shape {args[0].shape}{where}; "
             "it must return an array of the same shape as its inputs"
         )
     if not np.all(np.isfinite(out)):
         bad = int(np.flatnonzero(~np.isfinite(out))[0])
         at = ", ".join(f"{a[bad]:.4g}" for a in args)
-        raise ValueError(f"{name} returned a non-finite value ({out[bad]}) at angle(s) ({at}) rad")
+        raise ValueError(
+            f"{name} returned a non-finite value ({out[bad]}) at angle(s) ({at}) rad{where}"
+        )
+    return out
+
+
+#: Steps per pi of the engine's table of a medium given by callables (``Material.tabulated``):
+#: the grid step is h = pi / n in both angles. The default interpolates Li's generic medium,
+#: given as callables, to 1.2e-7 of its largest |alpha| (tests/test_tabulated.py) in 570 kB.
+TABLE_N = 64
+#: Table resolutions accepted: 8 (8e-4 on Li's medium: it warns) to 256 (4.5e-10; 8.8 MB).
+TABLE_N_MIN, TABLE_N_MAX = 8, 256
+#: The frame's beta leaves [0, pi] only on nearly horizontal plates (docs/design.md 2.2), by at
+#: most asin(sqrt(1 - HORIZONTAL_PLATE_NZ^2)) = 0.0447 rad; the table covers this much beyond.
+TABLE_BETA_MARGIN = math.asin(math.sqrt(1.0 - HORIZONTAL_PLATE_NZ**2)) + 0.005
+#: A table whose interpolation error at its cells' centres exceeds this fraction of the
+#: medium's largest |alpha| draws a MaterialWarning: the callables are not smooth at its step.
+TABLE_WARN = 1e-4
+#: The layout engine/law.h reads: tag, header length, values per node (alpha_x and alpha_z, each
+#: value, h d/dbeta, h d/dgamma, h^2 d2/dbeta dgamma); the header is tag, nb, ng, beta0, gamma0,
+#: h, then zeros.
+TABLE_TAG, TABLE_HEADER, TABLE_NODE = 3.0, 8, 8
+_TABLE_GHOST = 2  # nodes sampled beyond each end for the fourth-order differences
+
+
+def _difference(f: np.ndarray, axis: int) -> np.ndarray:
+    """h df/dx by fourth-order central differences along axis (losing two nodes at each end):
+    error h^5 f^(5) / 30."""
+    n = f.shape[axis]
+    at = lambda k: f.take(range(2 + k, n - 2 + k), axis=axis)  # noqa: E731
+    return (at(-2) - 8.0 * at(-1) + 8.0 * at(1) - at(2)) / 12.0
+
+
+def _hermite(s: float) -> tuple[float, float, float, float]:
+    """Cubic Hermite weights at s in [0, 1]: values at 0, 1, slopes (times h) at 0, 1."""
+    t = 1.0 - s
+    return (1.0 + 2.0 * s) * t * t, (3.0 - 2.0 * s) * s * s, s * t * t, -s * s * t
+
+
+def tabulate(material: Material, n: int = TABLE_N) -> tuple[np.ndarray, float, str]:
+    """The engine's table of a medium's generic alphas (the layout of engine/law.h), its
+    interpolation error measured at the centres of its cells over the largest |alpha| on it, and
+    the alpha ("alpha_x", "alpha_y" or "alpha_z") with that error.
+
+    alpha_x, alpha_z are sampled on nodes (beta0 + i h, -pi + j h), h = pi / n, beta over
+    [0, pi] and TABLE_BETA_MARGIN beyond, gamma over [-pi, pi], alpha_y on the same betas; the
+    derivatives by fourth-order differences on two more nodes past each end (the callables are
+    evaluated there too: they need not be periodic). The engine interpolates bicubic Hermite:
+    error at most h^4 / 384 (max |d4 alpha / d beta4| + max |d4 alpha / d gamma4|) + O(h^5).
+    Raises ValueError naming the callable that gives a wrong shape or a non-finite value.
+    """
+    h = math.pi / n
+    kb = math.ceil(TABLE_BETA_MARGIN / h)
+    nb, ng = n + 2 * kb + 1, 2 * n + 1
+    beta0, gamma0 = -kb * h, -math.pi
+    ghost = np.arange(-_TABLE_GHOST, 0)
+    betas = beta0 + h * np.concatenate([ghost, np.arange(nb + _TABLE_GHOST)])
+    gammas = gamma0 + h * np.concatenate([ghost, np.arange(ng + _TABLE_GHOST)])
+    where = f" on the engine's table of {material.name!r} (step pi/{n})"
+    ax, ay, az = _alphas(material, betas, gammas, where)
+    inner = slice(_TABLE_GHOST, -_TABLE_GHOST)
+    nodes = np.empty((nb, ng, TABLE_NODE))
+    for k, f in enumerate((ax, az)):
+        db = _difference(f, 0)  # (nb, ng + 4)
+        nodes[:, :, 4 * k] = f[inner, inner]
+        nodes[:, :, 4 * k + 1] = db[:, inner]
+        nodes[:, :, 4 * k + 2] = _difference(f, 1)[inner, :]
+        nodes[:, :, 4 * k + 3] = _difference(db, 1)
+    ay_nodes = np.stack([ay[inner], _difference(ay, 0)], axis=-1)
+    header = np.zeros(TABLE_HEADER)
+    header[:6] = TABLE_TAG, nb, ng, beta0, gamma0, h
+    table = np.concatenate([header, nodes.ravel(), ay_nodes.ravel()])
+    if not np.all(np.isfinite(table)):
+        raise ValueError(f"{material.name!r}: its alphas overflow{where}")
+    return table, *_table_error(material, nodes, ay_nodes, betas[inner], gammas[inner], where)
+
+
+def _alphas(material: Material, betas, gammas, where: str):
+    """Generic alpha_x, alpha_y, alpha_z of material on the grid betas x gammas (alpha_y over
+    betas), each callable checked."""
+    beta, gamma = (a.ravel() for a in np.meshgrid(betas, gammas, indexing="ij"))
+    shape = (len(betas), len(gammas))
+    if material.fourier is not None:
+        ax, az = material.fourier.alpha_x(beta, gamma), material.fourier.alpha_z(beta, gamma)
+    else:
+        ax = _check_callable(material.alpha_x_fn, "alpha_x(beta, gamma)", (beta, gamma), where)
+        az = _check_callable(material.alpha_z_fn, "alpha_z(beta, gamma)", (beta, gamma), where)
+    if material.alpha_y_fn is not None:
+        ay = _check_callable(material.alpha_y_fn, "alpha_y(beta)", (np.array(betas),), where)
+    else:
+        ay = np.full(len(betas), material.alpha_y0)
+    return ax.reshape(shape), ay, az.reshape(shape)
+
+
+def _table_error(
+    material: Material, nodes, ay_nodes, betas, gammas, where: str
+) -> tuple[float, str]:
+    """Largest |interpolated - exact| of the three alphas at the centres of the table's cells
+    (where the Hermite error term peaks), over the largest |alpha| on its nodes; and which alpha
+    it is."""
+    w0, w1, d0, d1 = _hermite(0.5)
+    h = betas[1] - betas[0]
+
+    def centre(k):  # interpolated value at the cells' centres of node quantity k..k+3
+        v, db, dg, dbg = (nodes[:, :, k + c] for c in range(4))
+        # Along gamma to the centres, at every beta node: value and beta slope.
+        vg = w0 * v[:, :-1] + d0 * dg[:, :-1] + w1 * v[:, 1:] + d1 * dg[:, 1:]
+        sg = w0 * db[:, :-1] + d0 * dbg[:, :-1] + w1 * db[:, 1:] + d1 * dbg[:, 1:]
+        return w0 * vg[:-1] + d0 * sg[:-1] + w1 * vg[1:] + d1 * sg[1:]
+
+    ax, ay, az = _alphas(material, betas[:-1] + 0.5 * h, gammas[:-1] + 0.5 * h, where)
+    y = ay_nodes
+    ay_mid = w0 * y[:-1, 0] + d0 * y[:-1, 1] + w1 * y[1:, 0] + d1 * y[1:, 1]
+    scale = max(np.abs(nodes[:, :, [0, 4]]).max(), np.abs(ay_nodes[:, 0]).max())
+    errors = {
+        "alpha_x": np.abs(centre(0) - ax).max(),
+        "alpha_z": np.abs(centre(4) - az).max(),
+        "alpha_y": np.abs(ay_mid - ay).max(),
+    }
+    name = max(errors, key=errors.get)
+    return (float(errors[name] / scale) if scale > 0.0 else 0.0), name
 
 
 class MaterialWarning(UserWarning):
@@ -298,6 +426,7 @@ class Material:
         when that is the force model (``model``, ``with_model``), else None.
       dynamic: lambda rho_c [kg/m^3] of the dynamic (inertial) RFT term, 0 when it is off (the
         default; ``with_dynamic``, docs/models.md "Dynamic RFT").
+      table_n: steps per pi of the engine's table of a medium given by callables (``tabulated``).
     """
 
     name: str
@@ -310,6 +439,7 @@ class Material:
     source: str = ""
     agarwal: np.ndarray | None = field(default=None, repr=False)
     dynamic: float = 0.0
+    table_n: int = field(default=TABLE_N, repr=False)
 
     # ----------------------------------------------------------------- constructors
     @classmethod
@@ -418,6 +548,10 @@ class Material:
         The callables are probed on a grid of angles now, so shape errors and non-finite values
         are reported at construction rather than mid-simulation; a model that would push a
         leading plate along its motion somewhere draws a MaterialWarning.
+
+        The RFT-only API (``element_forces``, body wrenches) evaluates the callables exactly, in
+        NumPy. The engine (MuJoCo's step runs no Python) evaluates them from a table sampled
+        once, when a model is loaded (``kernel_coefficients``, ``tabulated``).
         """
         z = _check_zeta(zeta)
         warn_if_unusual_zeta(z)
@@ -446,6 +580,54 @@ class Material:
                 stacklevel=2,
             )
         return material
+
+    def tabulated(self, n: int = TABLE_N) -> Material:
+        """This medium given by callables, with the engine's table of them at step pi / n [rad]
+        in both angles (default TABLE_N; TABLE_N_MIN..TABLE_N_MAX).
+
+        The engine tabulates a medium given by callables by itself, at TABLE_N, when a model
+        is loaded (``kernel_coefficients``): a scene's medium reaches the engine only as
+        coefficients, and every such medium needs a table, so asking for one would only turn
+        a working script into an error. Call this for another resolution: the error falls as
+        h^4 (``table_error``; 1.2e-7 of the largest |alpha| for Li's generic medium at 64,
+        about 16 n^2 doubles of memory). The callables are sampled, and checked, now.
+        """
+        if self.compiled or self.agarwal is not None:
+            raise ValueError(
+                f"material {self.name!r} is given by coefficients: the engine evaluates it "
+                "exactly; only media given by callables are tabulated"
+            )
+        if not (isinstance(n, int | np.integer) and TABLE_N_MIN <= n <= TABLE_N_MAX):
+            raise ValueError(
+                f"tabulated(n={n!r}): expected an integer number of steps per pi in "
+                f"{TABLE_N_MIN}..{TABLE_N_MAX}"
+            )
+        material = dataclasses.replace(self, table_n=int(n))
+        material.kernel_coefficients  # noqa: B018 (samples and checks the callables now)
+        return material
+
+    @functools.cached_property
+    def _table(self) -> tuple[np.ndarray, float, str]:
+        """``tabulate(self, self.table_n)``, once; warns (MaterialWarning) if its error is above
+        TABLE_WARN."""
+        table, error, worst = tabulate(self, self.table_n)
+        if error > TABLE_WARN:
+            warnings.warn(
+                f"{self.name}: the engine's table (step pi/{self.table_n}) misses {worst} by "
+                f"{error:.2g} of the medium's largest |alpha| at its cells' centres: the "
+                "callables are not smooth at that step; give a finer table (Material."
+                "tabulated(n=...)) or smoother callables",
+                MaterialWarning,
+                stacklevel=3,
+            )
+        return table, error, worst
+
+    @property
+    def table_error(self) -> float:
+        """The engine's table's interpolation error for a medium given by callables: the largest
+        |table - callable| of alpha_x, alpha_z and alpha_y at the centres of its cells, over
+        the largest |alpha| on its nodes (0 for media given by coefficients)."""
+        return 0.0 if self.compiled or self.agarwal is not None else self._table[1]
 
     @classmethod
     def _from_fourier(cls, coeffs: FourierCoefficients, zeta: float, name: str, source: str):
@@ -537,19 +719,21 @@ class Material:
 
     @property
     def compiled(self) -> bool:
-        """True if the compiled kernel evaluates this medium (Fourier form, constant alpha_y, or
-        the agarwal3d model)."""
+        """True if the compiled kernel evaluates this medium exactly, from its coefficients
+        (Fourier form, constant alpha_y, or the agarwal3d model). A medium given by callables
+        is not: the RFT-only API evaluates it in NumPy, the engine from its table."""
         return (self.fourier is not None or self.agarwal is not None) and self.alpha_y_fn is None
 
     @functools.cached_property
     def kernel_coefficients(self) -> np.ndarray:
-        """The compiled kernel's coefficients: (18,) generic coefficients in its combined form
-        (Fourier media), or (agarwal.SIZE,) parameters of the agarwal3d model; with the dynamic
-        term, its lambda rho_c [kg/m^3] appended."""
+        """The engine's coefficients: (18,) generic coefficients in its combined form (Fourier
+        media), (agarwal.SIZE,) parameters of the agarwal3d model, or, for a medium given by
+        callables, the table of its alphas at step pi / table_n (``tabulate``; sampled here,
+        once); with the dynamic term, its lambda rho_c [kg/m^3] appended."""
         if self.agarwal is not None:
             base = self.agarwal
-        elif self.fourier is None:
-            raise ValueError(f"material {self.name!r} is given by callables, not coefficients")
+        elif not self.compiled:
+            base = self._table[0]
         else:
             base = combined_coefficients(self.fourier)
         # The kernel reads a dynamic term's coefficient from one extra entry (kernel.N_COMBINED).

@@ -61,12 +61,10 @@ def setup(model: mujoco.MjModel, options: SceneOptions | None = None) -> FieldSe
     """The field's setup (scene, elements, tables) of a compiled model with an ``mjrft:``
     section, under options."""
     scene = scene_from_model(model, **(options or SceneOptions()).given())
-    if not scene.material.compiled:
-        raise SceneError(
-            "the engine evaluates media given by coefficients (Material presets, Fourier or "
-            "3D-RFT coefficients, Material.from_callables tabulated by Material.tabulated); a "
-            "medium given by Python callables alone cannot run inside MuJoCo's step"
-        )
+    try:  # a medium given by callables is tabulated (and its callables checked) here
+        scene.material.kernel_coefficients  # noqa: B018
+    except ValueError as exc:
+        raise SceneError(f"material {scene.material.name!r}: {exc}") from None
     return field_setup(model, scene)
 
 
