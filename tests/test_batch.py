@@ -69,7 +69,7 @@ def test_each_copy_steps_exactly_as_its_mjdata_alone(integrator):
     n = 5
     bf = scene_batch(integrator, n, nthread=2)
     field, m = bf.field, bf.model
-    alone = [bf.batch.get_data(i) for i in range(n)]  # whole MjData: the engine reads qacc
+    alone = [bf.batch.get_data(i) for i in range(n)]
     for k, nstep in enumerate((1, 1, 38, 40, 1, 79, 80)):  # calls of one and of many steps
         push(bf, 40 * k)
         bf.step(nstep)

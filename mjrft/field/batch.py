@@ -30,10 +30,9 @@ at the start of each substep and held over it, ``xfrc_applied = user + wrench``)
 * ``user_xfrc`` is written into the copies' ``xfrc_applied`` at every ``step``, which the
   engine keeps as the user's part (its protocol for any MjData: ``GranularField.user_xfrc``).
 
-The copies keep one MjData each (``Batch(persistent=True)``): the engine reads from one step to
-the next fields of the MjData that are not in the state rows (the previous step's ``qacc``, the
-mechanism treatment's predictor), so copies sharing MjData (a plain batch) would not step as
-alone.
+The copies keep one MjData each (``Batch(persistent=True)``): the engine keeps work arrays in
+the MjData's ``plugin_data`` from one pass to the next (the mechanism treatment's caches), which
+are not in the state rows, so copies sharing MjData (a plain batch) would not step as alone.
 """
 
 from __future__ import annotations
