@@ -1,10 +1,12 @@
-"""Batched stepping equals the single-MjData path copy by copy."""
+"""A batch of a plugin model: each copy steps exactly as its MjData stepped alone."""
 
+import threading
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
+from mujoco.batch import SimulationError
 
 import mjrft
 from mjrft import simulate
@@ -12,98 +14,161 @@ from mjrft.batch import BatchedField, single_step_reference
 from mjrft.field import GranularField
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
+INTEGRATION = mujoco.mjtState.mjSTATE_INTEGRATION
+
+# A free body (the free-body treatment: pure model, implicit steps, slip and stick) and a ball on
+# a slide (the mechanism treatment, which reads the previous step's qacc from the MjData).
+SCENE = """
+<mujoco>
+  <option timestep="0.001" integrator="{integrator}"><flag contact="disable"/></option>
+  <custom>
+    <text name="mjrft:material" data="glass_beads"/>
+    <numeric name="mjrft:region" data="-0.2 -0.2 -0.3 0.2 0.2 0.1"/>
+    <tuple name="mjrft:intruders">
+      <element objtype="geom" objname="shell" prm="200"/>
+      <element objtype="body" objname="ball" prm="150"/>
+    </tuple>
+  </custom>
+  <worldbody>
+    <body name="crab" pos="0 0 0.004">
+      <freejoint/>
+      <geom name="shell" type="ellipsoid" size="0.008 0.006 0.012" density="2500"/>
+    </body>
+    <body name="ball" pos="0.05 0 0.008">
+      <joint type="slide" axis="0 0 1"/>
+      <geom type="sphere" size="0.01" density="1500"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+THROWN = np.array([0.05, -0.02, -0.15, 3.0, -2.0, 1.5, -0.05])
 
 
-def test_batch_matches_single_copies_with_different_states_and_controls():
-    m = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
-    fld = GranularField(m, n_triangles=400)
-    n = 3
-    bf = BatchedField(fld, nsim=n, nthread=2)
-    bf.reset(keyframe=np.zeros(n, dtype=int))
-    ctrl = bf.batch.bind("ctrl")
-    qpos = bf.batch.bind("qpos")
-    crank = m.actuator("crank").id
-    ctrl[:, crank] *= np.array([0.5, 1.0, 1.7])
-    slide = m.joint("descent").qposadr[0]
-    qpos[1, slide] -= 0.004  # copy 1 starts deeper (and its servo target with it)
-    bf.batch.bind("act")[1, m.actuator("descent").actadr[0]] -= 0.004
-    bf.forward()
-    bf.user_xfrc[2, m.body("ellipsoid").id, :3] = [0.02, 0.0, -0.05]  # a push on copy 2 only
-    # Every state field the batch integrates (the solver's warm start included).
-    fields = ("time", "qpos", "qvel", "act", "ctrl", "qacc_warmstart")
-    starts = [{f: np.array(bf.batch.bind(f)[i]) for f in fields} for i in range(n)]
-    bf.step(800)
-    assert np.any(bf.wrench != 0)
-    for i, start in enumerate(starts):
-        d = mujoco.MjData(m)
-        d.time = float(start.pop("time"))
-        for f, v in start.items():
-            getattr(d, f)[:] = v
-        for _ in range(800):
-            single_step_reference(fld, d, bf.user_xfrc[i])
-        np.testing.assert_array_equal(bf.batch.bind("qpos")[i], d.qpos)
-        np.testing.assert_array_equal(bf.batch.bind("qvel")[i], d.qvel)
-    final = bf.batch.bind("qpos")
-    assert not np.allclose(final[0], final[2])  # the copies really differ
-
-
-@pytest.mark.filterwarnings("ignore::mjrft.core.material.MaterialWarning")  # a stand-in model
-def test_batch_rejects_callable_materials_and_bad_sizes():
-    m = simulate.load_model(MODELS / "sphere_drop.xml")
-    mat = mjrft.Material.from_callables(lambda b, g: 0 * b + 0.1, lambda b, g: 0 * b + 1.0, 1e5)
-    with pytest.raises(ValueError, match="callables"):
-        BatchedField(GranularField(m, material=mat), nsim=2)
-    with pytest.raises(ValueError, match="nsim"):
-        BatchedField(GranularField(m), nsim=0)
-
-
-def test_batch_refuses_non_finite_state_naming_the_copy():
-    m = simulate.load_model(MODELS / "sphere_drop.xml")
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    bf = BatchedField(GranularField(m, n_triangles=100), nsim=3, nthread=1)
+def scene_batch(integrator: str, nsim: int, nthread: int) -> BatchedField:
+    """Copies thrown at speeds from 0 (at rest) to 1.5 times THROWN, ready to step."""
+    field = GranularField(mjrft.load_model(SCENE.format(integrator=integrator)))
+    bf = BatchedField(field, nsim=nsim, nthread=nthread)
     bf.reset()
-    bf.batch.bind("qvel")[1, 2] = np.nan
+    bf.batch.bind("qvel")[:] = np.linspace(0.0, 1.5, nsim)[:, None] * THROWN
     bf.forward()
-    with pytest.raises(FloatingPointError, match="simulation 1"):
-        bf.step()
+    return bf
 
 
-def test_threaded_rft_pass_equals_one_thread_and_counts_every_copy():
-    """With enough copies the RFT pass runs on several threads over disjoint copies: the states,
-    the field's statistics and the copy named in an error are those of a single thread."""
-    m = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
-    n, crank = 9, m.actuator("crank").id
+def push(bf: BatchedField, i: int) -> None:
+    """User forces on the free body of every other copy at step i, changed now and then."""
+    if i % 40 == 0:
+        bf.user_xfrc[::2, 1] = (0.01 * np.sin(i), 0.0, 0.05, 0.0, 1e-4, 0.0)
+    if i == 120:
+        bf.user_xfrc[:] = 0.0
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_each_copy_steps_exactly_as_its_mjdata_alone(integrator):
+    """The engine acts inside each copy's mj_step, with the copy's own state: a copy's whole
+    state (engine state included), wrench, decisions and counters after batched steps are those
+    of its MjData stepped alone by mj_step, bit for bit."""
+    n = 5
+    bf = scene_batch(integrator, n, nthread=2)
+    field, m = bf.field, bf.model
+    alone = [bf.batch.get_data(i) for i in range(n)]
+    for k, nstep in enumerate((1, 1, 38, 40, 1, 79, 80)):  # calls of one and of many steps
+        push(bf, 40 * k)
+        bf.step(nstep)
+        for d, user in zip(alone, bf.user_xfrc, strict=True):
+            for _ in range(nstep):
+                single_step_reference(field, d, user)
+    state = np.zeros(mujoco.mj_stateSize(m, INTEGRATION))
+    for i, d in enumerate(alone):
+        mujoco.mj_getState(m, d, state, INTEGRATION)
+        np.testing.assert_array_equal(bf.batch.state[i], state, err_msg=f"copy {i}")
+        np.testing.assert_array_equal(bf.wrench[i], field.wrench_of(d))
+        np.testing.assert_array_equal(bf.state_array("decision")[i], field.decision_of(d))
+    assert bf.stats == {k: sum(field.stats_of(d)[k] for d in alone) for k in bf.stats}
+    assert bf.stats["stuck"] > 0 and bf.stats["implicit"] > 0  # the treatment decided
+    assert np.all(bf.wrench[1:, 2, 2] != 0.0)  # the field acts on every copy's ball
+    qpos = bf.batch.bind("qpos")
+    assert not np.allclose(qpos[1], qpos[3])  # the copies really differ
+
+
+def test_user_forces_are_the_users_part_and_the_field_adds_to_them():
+    bf = scene_batch("Euler", 2, nthread=1)
+    bf.user_xfrc = np.zeros((2, bf.model.nbody, 6))  # assignment copies into the same array
+    bf.user_xfrc[0, 1] = (0.01, 0.0, 0.02, 0.0, 1e-4, 0.0)
+    bf.step(3)
+    xfrc = bf.batch.bind("xfrc_applied")
+    np.testing.assert_array_equal(xfrc[:, 1], bf.user_xfrc[:, 1] + bf.wrench[:, 1])
+    for i in range(2):
+        np.testing.assert_array_equal(bf.field.user_xfrc(bf.batch.get_data(i)), bf.user_xfrc[i])
+
+
+def test_thread_counts_give_the_same_bits():
     runs = []
     for nthread in (1, 2):
-        fld = GranularField(m, n_triangles=200)
-        bf = BatchedField(fld, nsim=n, nthread=nthread)
-        assert len(bf._jobs) == nthread  # 9 copies: one thread, or two of 4 and 5 copies
-        bf.reset(keyframe=np.zeros(n, dtype=int))
-        bf.batch.bind("ctrl")[:, crank] *= np.linspace(0.6, 1.4, n)
-        bf.user_xfrc = np.zeros((n, m.nbody, 6))  # assignment copies into the bound array
-        bf.user_xfrc[7, m.body("ellipsoid").id, 2] = -0.05
-        bf.step(1500)
-        runs.append((np.array(bf.batch.bind("qpos")), np.array(bf.wrench), fld.stats))
-        bf.close()
-    (q1, w1, s1), (q2, w2, s2) = runs
-    assert np.any(w1 != 0)
-    np.testing.assert_array_equal(q2, q1)
+        bf = scene_batch("RK4", 7, nthread)
+        for i in range(200):
+            push(bf, i)
+            bf.step()
+        runs.append((np.array(bf.batch.state), np.array(bf.wrench), bf.stats))
+    (s1, w1, c1), (s2, w2, c2) = runs
+    assert np.any(w1 != 0.0)
+    np.testing.assert_array_equal(s2, s1)
     np.testing.assert_array_equal(w2, w1)
-    assert s2 == s1 and s1["calls"] == 1500 * n
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
-    bf = BatchedField(GranularField(m, n_triangles=200), nsim=n, nthread=2)
-    bf.reset(keyframe=np.zeros(n, dtype=int))
-    bf.batch.bind("qvel")[6] = np.nan  # a copy of the second thread's share
-    bf.forward()
-    with pytest.raises(FloatingPointError, match="simulation 6"):
+    assert c2 == c1
+
+
+def test_a_failing_copy_is_named_and_the_others_step_on():
+    m = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=100)
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET  # else MuJoCo resets NaN qvel
+    bf = BatchedField(GranularField(m), nsim=3, nthread=1)
+    bf.reset()
+    bf.batch.bind("qvel")[1, 2] = np.nan
+    with pytest.raises(SimulationError, match=r"simulation 1: body 'sphere' has a non-finite"):
         bf.step()
+    np.testing.assert_array_equal(bf.batch.bind("time"), [m.opt.timestep, 0.0, m.opt.timestep])
+
+
+FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
+<numeric name="mjrft:deform_cell" data="0.0025"/>
+<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="300"/></tuple></custom>
+<worldbody><body name="foot" pos="0 0 0.005"><joint name="z" type="slide" axis="0 0 1"/>
+<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body></worldbody>
+<actuator><position joint="z" kp="1e5" kv="2000"/></actuator></mujoco>"""
+
+
+def test_each_copy_has_its_own_ground():
+    """Two copies pressed to different depths carry the grounds their MjData get alone."""
+    field = GranularField(mjrft.load_model(FOOT))
+    bf = BatchedField(field, nsim=2, nthread=1)
+    bf.reset()
+    alone = [bf.batch.get_data(i) for i in range(2)]
+    targets = np.array([-0.004, -0.007])
+    for i in range(120):
+        bf.batch.bind("ctrl")[:, 0] = targets * min(1.0, i / 60)
+        for d, target in zip(alone, targets, strict=True):
+            d.ctrl[0] = target * min(1.0, i / 60)
+            single_step_reference(field, d)
+        bf.step()
+    for i, d in enumerate(alone):
+        np.testing.assert_array_equal(bf.soil(i).height, field.soil(d).height)
+        assert bf.soil(i).counters == field.soil(d).counters
+    assert not np.array_equal(bf.soil(0).height, bf.soil(1).height)
+
+
+def test_bad_sizes_and_names_are_refused():
+    m = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=100)
+    with pytest.raises(ValueError, match="nsim"):
+        BatchedField(GranularField(m), nsim=0)
+    bf = BatchedField(GranularField(m), nsim=2)
+    with pytest.raises(KeyError, match="'elem_force' is not one of the engine's persistent"):
+        bf.state_array("elem_force")
+    with pytest.raises(ValueError, match="does not deform"):
+        bf.soil(0)
 
 
 def test_a_batch_refuses_to_step_from_two_threads_at_once():
-    import threading
-
-    m = simulate.load_model(MODELS / "sphere_drop.xml")
-    bf = BatchedField(GranularField(m, n_triangles=100), nsim=2, nthread=1)
+    m = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=100)
+    bf = BatchedField(GranularField(m), nsim=2, nthread=1)
     bf.reset()
     errors = []
     with bf._stepping:  # another thread is inside step()

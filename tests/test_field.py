@@ -1,6 +1,8 @@
-"""The MuJoCo field: scene parsing, wrenches, the installed path and its composition rules."""
+"""The field of a plugin model: scene parsing, wrenches, the engine's pass inside mj_step and
+its composition rules."""
 
 import copy
+import ctypes
 
 import mujoco
 import numpy as np
@@ -9,8 +11,8 @@ import quadrature_reference
 
 import mjrft
 from mjrft.body import quat_to_mat
+from mjrft.core import engine
 from mjrft.field import GranularField
-from mjrft.field import guard as _callback
 from mjrft.field.scene import SceneError
 
 GLASS = mjrft.Material.preset("glass_beads")
@@ -41,8 +43,9 @@ BALL = """
 </body>"""
 
 
-def ball_model(**kw):
-    return mujoco.MjModel.from_xml_string(scene_xml(BALL, **kw))
+def ball_model(options=None, **kw):
+    """The ball scene with the engine plugin (options: mjrft.SceneOptions fields)."""
+    return mjrft.load_model(scene_xml(BALL, **kw), **(options or {}))
 
 
 # A heavy ball shot steeply into the medium keeps moving throughout the comparison runs: RFT is
@@ -52,8 +55,10 @@ HEAVY_BALL = BALL.replace('density="2500"', 'density="60000"')
 SHOT = {"v": (0.2, -0.1, -1.0), "w": (3.0, -2.0, 1.0)}
 
 
-def heavy_model(**kw):
-    return mujoco.MjModel.from_xml_string(scene_xml(HEAVY_BALL, **kw))
+def heavy_model(plugin=True, **kw):
+    """The heavy ball's scene with the engine plugin, or without it (no RFT at all)."""
+    xml = scene_xml(HEAVY_BALL, **kw)
+    return mjrft.load_model(xml) if plugin else mujoco.MjModel.from_xml_string(xml)
 
 
 def set_motion(d, v=(0.02, -0.01, -0.03), w=(1.0, -2.0, 0.5)):
@@ -62,11 +67,11 @@ def set_motion(d, v=(0.02, -0.01, -0.03), w=(1.0, -2.0, 0.5)):
 
 
 def test_wrench_layout_and_zero_elsewhere():
-    m = ball_model()
+    m = ball_model({"low_speed": "off"})
     d = mujoco.MjData(m)
     set_motion(d)
     mujoco.mj_forward(m, d)
-    w = GranularField(m, low_speed="off").wrench(d)
+    w = GranularField(m).wrench(d)
     assert w.shape == (m.nbody, 6)
     assert np.all(w[0] == 0)
     assert w[1, 2] > 0  # moving down into the medium: pushed up
@@ -129,14 +134,14 @@ def mesh_scene():
 
 
 def test_com_wrench_equals_element_sum_for_offset_rotated_mesh():
-    m = mujoco.MjModel.from_xml_string(mesh_scene())
+    m = mjrft.load_model(mesh_scene(), low_speed="off")
     # MuJoCo re-centred the mesh: the geom frame is no longer what the MJCF wrote.
     assert not np.allclose(m.geom_pos[0], GEOM_POS)
     d = mujoco.MjData(m)
     v, w_local = np.array([0.03, -0.02, -0.05]), np.array([1.5, -0.7, 2.0])
     d.qvel[:3], d.qvel[3:6] = v, w_local
     mujoco.mj_forward(m, d)
-    wrench = GranularField(m, low_speed="off").wrench(d)
+    wrench = GranularField(m).wrench(d)
 
     # Independent: the mesh as written in the MJCF, placed by the MJCF's geom pos/quat.
     es = mjrft.ElementSet.from_triangles(MESH_VERTS, MESH_FACES)
@@ -169,12 +174,12 @@ TWO_TAGS = (("geom", "a_box", 300), ("geom", "a_cap", 200), ("body", "c", 250))
 
 
 def test_several_geoms_and_bodies_match_core_body_wrench():
-    m = mujoco.MjModel.from_xml_string(scene_xml(TWO_BODIES, tagged=TWO_TAGS))
+    m = mjrft.load_model(scene_xml(TWO_BODIES, tagged=TWO_TAGS), low_speed="off")
     d = mujoco.MjData(m)
     rng = np.random.default_rng(0)
     d.qvel[:] = rng.normal(size=m.nv) * 0.1
     mujoco.mj_forward(m, d)
-    fld = GranularField(m, low_speed="off")
+    fld = GranularField(m)
     assert {be.name for be in fld.bodies} == {"a", "c"}
     wrench = fld.wrench(d)
     for be in fld.bodies:
@@ -228,66 +233,67 @@ def test_surface_height_from_mjcf():
     )
 
 
-# ------------------------------------------------------------------ installed path
-def simulate(m, n, *, installed=True, user=None, explicit=False, fld=None, motion=None):
+# ------------------------------------------------------------------ the engine's pass in mj_step
+def simulate(m, n, *, user=None, motion=None):
+    """(n, nq + nv) states of n mj_steps of m from set_motion's start, with the user's forces
+    user (nbody, 6) assigned to xfrc_applied once before them; and the MjData."""
     d = mujoco.MjData(m)
     set_motion(d, **(motion or {}))
-    fld = fld or GranularField(m)
-    user = np.zeros((m.nbody, 6)) if user is None else user
+    d.xfrc_applied[:] = 0.0 if user is None else user
     traj = []
-    if explicit:
-        for _ in range(n):
-            mujoco.mj_forward(m, d)
-            d.xfrc_applied[:] = user + fld.wrench(d)
-            mujoco.mj_step(m, d)
-            traj.append(np.concatenate([d.qpos, d.qvel]))
-        return np.array(traj), d
-    d.xfrc_applied[:] = user
-    with fld.installed() if installed else _null():
-        for _ in range(n):
-            mujoco.mj_step(m, d)
-            traj.append(np.concatenate([d.qpos, d.qvel]))
+    for _ in range(n):
+        mujoco.mj_step(m, d)
+        traj.append(np.concatenate([d.qpos, d.qvel]))
     return np.array(traj), d
 
 
-class _null:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *a):
-        return False
+def simulate_explicit(m, plain, n, *, user, motion):
+    """The explicit path: plain (m's scene without the plugin) stepped with xfrc_applied = user
+    + GranularField(m).wrench of each state, evaluated on an MjData of m set to that state."""
+    fld = GranularField(m)
+    d, probe = mujoco.MjData(plain), mujoco.MjData(m)
+    set_motion(d, **motion)
+    traj = []
+    for _ in range(n):
+        probe.time, probe.qpos[:], probe.qvel[:] = d.time, d.qpos, d.qvel
+        mujoco.mj_forward(m, probe)
+        d.xfrc_applied[:] = user + fld.wrench(probe, user_xfrc=user)
+        mujoco.mj_step(plain, d)
+        traj.append(np.concatenate([d.qpos, d.qvel]))
+    return np.array(traj)
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
-def test_explicit_path_equals_installed_path(integrator):
-    m = heavy_model(option=f'integrator="{integrator}"')
+def test_explicit_path_equals_the_engines_pass(integrator):
+    option = f'integrator="{integrator}"'
+    m, plain = heavy_model(option=option), heavy_model(plugin=False, option=option)
     user = np.zeros((m.nbody, 6))
     user[1] = [0.01, -0.02, 0.03, 1e-4, 0, -2e-4]
     a, _ = simulate(m, 80, user=user, motion=SHOT)
     assert np.all(a[:, m.nq + 2] < -0.1)  # still plunging: no velocity reversal
-    b, _ = simulate(m, 80, user=user, explicit=True, motion=SHOT)
+    b = simulate_explicit(m, plain, 80, user=user, motion=SHOT)
     np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)
-    free, _ = simulate(m, 80, user=user, installed=False, motion=SHOT)
+    free, _ = simulate(plain, 80, user=user, motion=SHOT)
     assert not np.allclose(a, free, atol=1e-3)  # the field really acted
 
 
 def test_no_lag_force_is_from_the_state_being_stepped():
     m = ball_model()
+    plain = mujoco.MjModel.from_xml_string(scene_xml(BALL))
     fld = GranularField(m)
     d = mujoco.MjData(m)
     set_motion(d)
     for _ in range(5):
-        before = mujoco.MjData(m)
-        before.qpos[:], before.qvel[:] = d.qpos, d.qvel
+        before = copy.copy(d)
         mujoco.mj_forward(m, before)
         expected = fld.wrench(before)
-        with fld.installed():
-            mujoco.mj_step(m, d)
-            np.testing.assert_allclose(fld.last_wrench, expected, rtol=1e-12, atol=1e-15)
+        mujoco.mj_step(m, d)
+        np.testing.assert_allclose(fld.wrench_of(d), expected, rtol=1e-12, atol=1e-15)
         # The step's acceleration is that of the pre-step state under exactly that wrench.
-        before.xfrc_applied[:] = expected
-        mujoco.mj_forward(m, before)
-        np.testing.assert_allclose(d.qacc, before.qacc, rtol=1e-9, atol=1e-9)
+        alone = mujoco.MjData(plain)
+        alone.qpos[:], alone.qvel[:], alone.xfrc_applied[:] = before.qpos, before.qvel, expected
+        mujoco.mj_forward(plain, alone)
+        np.testing.assert_allclose(d.qacc, alone.qacc, rtol=1e-9, atol=1e-9)
 
 
 def test_load_cell_sees_the_field():
@@ -300,13 +306,12 @@ def test_load_cell_sees_the_field():
            </body>""",
         option='gravity="0 0 0"',
     ).replace("</mujoco>", '<sensor><force name="cell" site="cell"/></sensor></mujoco>')
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     d = mujoco.MjData(m)
     d.qvel[0] = -0.01
     fld = GranularField(m)
-    with fld.installed():
-        mujoco.mj_forward(m, d)
-    w = fld.last_wrench[m.body("b").id]
+    mujoco.mj_forward(m, d)
+    w = fld.wrench_of(d)[m.body("b").id]
     assert w[2] > 0.01
     # Parent-on-child force = m a - F_ext; this slide keeps x, y from accelerating.
     acc = np.zeros(6)
@@ -315,25 +320,26 @@ def test_load_cell_sees_the_field():
     np.testing.assert_allclose(d.sensordata[:3], expected, rtol=1e-6, atol=1e-9)
 
 
-def test_user_rows_survive_assignment_between_steps_and_are_restored():
+def test_user_rows_survive_assignment_between_steps():
+    """Between steps a tagged row holds the user's part plus the last pass's RFT; what the user
+    assigns there is the user's part from then on."""
     m = ball_model()
     fld = GranularField(m)
     d = mujoco.MjData(m)
     set_motion(d)
     push = np.array([0.01, 0.0, 0.02, 0.0, 1e-4, 0.0])
-    with fld.installed():
-        d.xfrc_applied[1] = push
-        mujoco.mj_step(m, d)
-        np.testing.assert_array_equal(d.xfrc_applied[1], push + fld.last_wrench[1])
-        np.testing.assert_array_equal(fld.user_xfrc(d)[1], push)
-        d.xfrc_applied[:] = 0.0  # what the interactive viewer does before applying a perturbation
-        mujoco.mj_step(m, d)
-        np.testing.assert_array_equal(d.xfrc_applied[1], fld.last_wrench[1])
-        np.testing.assert_array_equal(fld.user_xfrc(d)[1], np.zeros(6))
-        d.xfrc_applied[1] = 2 * push
-        mujoco.mj_step(m, d)
-        np.testing.assert_array_equal(fld.user_xfrc(d)[1], 2 * push)
-    np.testing.assert_array_equal(d.xfrc_applied[1], 2 * push)  # the field's part is removed
+    d.xfrc_applied[1] = push
+    mujoco.mj_step(m, d)
+    np.testing.assert_array_equal(d.xfrc_applied[1], push + fld.wrench_of(d)[1])
+    np.testing.assert_array_equal(fld.user_xfrc(d)[1], push)
+    d.xfrc_applied[:] = 0.0  # what the interactive viewer does before applying a perturbation
+    mujoco.mj_step(m, d)
+    np.testing.assert_array_equal(d.xfrc_applied[1], fld.wrench_of(d)[1])
+    np.testing.assert_array_equal(fld.user_xfrc(d)[1], np.zeros(6))
+    d.xfrc_applied[1] = 2 * push
+    mujoco.mj_step(m, d)
+    np.testing.assert_array_equal(fld.user_xfrc(d)[1], 2 * push)
+    np.testing.assert_array_equal(d.xfrc_applied[1], 2 * push + fld.wrench_of(d)[1])
 
 
 def test_writing_one_component_assigns_only_that_component():
@@ -343,19 +349,17 @@ def test_writing_one_component_assigns_only_that_component():
     m = ball_model()
     fld = GranularField(m)
     d = mujoco.MjData(m)
-    with fld.installed():
-        for _ in range(300):  # released partly submerged: sinks a little and rests
-            mujoco.mj_step(m, d)
-        rest = d.qpos[2]
-        assert fld.last_wrench[1, 2] > 0.5 * m.body_mass[1] * 9.81  # the medium carries it
-        d.xfrc_applied[1, 0] = 1e-4
-        for _ in range(500):
-            mujoco.mj_step(m, d)
-        user = fld.user_xfrc(d)[1]
-        np.testing.assert_array_equal(user, [1e-4, 0, 0, 0, 0, 0])
-        np.testing.assert_array_equal(d.xfrc_applied[1], user + fld.last_wrench[1])
+    for _ in range(300):  # released partly submerged: sinks a little and rests
+        mujoco.mj_step(m, d)
+    rest = d.qpos[2]
+    assert fld.wrench_of(d)[1, 2] > 0.5 * m.body_mass[1] * 9.81  # the medium carries it
+    d.xfrc_applied[1, 0] = 1e-4
+    for _ in range(500):
+        mujoco.mj_step(m, d)
+    user = fld.user_xfrc(d)[1]
+    np.testing.assert_array_equal(user, [1e-4, 0, 0, 0, 0, 0])
+    np.testing.assert_array_equal(d.xfrc_applied[1], user + fld.wrench_of(d)[1])
     assert abs(d.qpos[2] - rest) < 1e-3  # still in the medium, not thrown out
-    np.testing.assert_array_equal(d.xfrc_applied[1], [1e-4, 0, 0, 0, 0, 0])  # restored
 
 
 def test_copied_data_keeps_only_the_user_part():
@@ -364,20 +368,19 @@ def test_copied_data_keeps_only_the_user_part():
     d = mujoco.MjData(m)
     set_motion(d, **SHOT)
     d.xfrc_applied[1, :3] = [0.1, 0.0, 0.2]
-    with fld.installed():
-        for _ in range(10):
-            mujoco.mj_step(m, d)
-        twin = copy.copy(d)
-        mujoco.mj_step(m, d)  # the original moves on before the copy's first step
-        twin_late = copy.copy(d)
-        mujoco.mj_step(m, twin)  # now all three are at step 11
-        for _ in range(20):
-            mujoco.mj_step(m, d)
-            mujoco.mj_step(m, twin)
-            mujoco.mj_step(m, twin_late)
-        np.testing.assert_array_equal(twin.qpos, d.qpos)
-        np.testing.assert_array_equal(twin_late.qpos, d.qpos)
-        np.testing.assert_array_equal(fld.user_xfrc(twin)[1, :3], [0.1, 0.0, 0.2])
+    for _ in range(10):
+        mujoco.mj_step(m, d)
+    twin = copy.copy(d)
+    mujoco.mj_step(m, d)  # the original moves on before the copy's first step
+    twin_late = copy.copy(d)
+    mujoco.mj_step(m, twin)  # now all three are at step 11
+    for _ in range(20):
+        mujoco.mj_step(m, d)
+        mujoco.mj_step(m, twin)
+        mujoco.mj_step(m, twin_late)
+    np.testing.assert_array_equal(twin.qpos, d.qpos)
+    np.testing.assert_array_equal(twin_late.qpos, d.qpos)
+    np.testing.assert_array_equal(fld.user_xfrc(twin)[1, :3], [0.1, 0.0, 0.2])
 
 
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])
@@ -390,7 +393,7 @@ def test_user_xfrc_is_neither_lost_nor_double_counted(integrator):
     user[1, :3] = u
     a, da = simulate(m, 80, user=user, motion=SHOT)
     assert np.all(a[:, m.nq + 2] < -0.1)
-    assert np.array_equal(da.xfrc_applied, user)  # untouched by the field
+    np.testing.assert_array_equal(GranularField(m).user_xfrc(da), user)  # still the user's
     m2 = heavy_model(option=f'integrator="{integrator}"')
     m2.opt.gravity[:] = m.opt.gravity + u / m.body_mass[1]
     b, _ = simulate(m2, 80, motion=SHOT)
@@ -404,14 +407,12 @@ def test_rk4_evaluates_a_moving_body_in_every_stage():
     fld = GranularField(m)
     d = mujoco.MjData(m)
     set_motion(d, **SHOT)
-    with fld.installed():
-        for n in range(1, 4):
-            mujoco.mj_step(m, d)
-            assert fld.stats["calls"] == 4 * n  # natively handled passes count too
-    m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER  # read live by the native pass
-    with fld.installed():
+    for n in range(1, 4):
         mujoco.mj_step(m, d)
-    assert fld.stats["calls"] == 13
+        assert fld.stats_of(d)["calls"] == 4 * n
+    m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER  # the engine reads the model live
+    mujoco.mj_step(m, d)
+    assert fld.stats_of(d)["calls"] == 13
 
 
 def test_rk4_holds_a_body_at_rest_over_the_step():
@@ -420,23 +421,22 @@ def test_rk4_holds_a_body_at_rest_over_the_step():
     m = ball_model(option='integrator="RK4"')
     fld = GranularField(m)
     d = mujoco.MjData(m)
-    with fld.installed():
-        for _ in range(300):  # released at rest, partly submerged: sinks a little and stops
-            mujoco.mj_step(m, d)
-        calls, stuck = fld.stats["calls"], fld.stats["stuck"]
-        for n in range(1, 4):
-            mujoco.mj_step(m, d)
-            assert fld.stats["calls"] == calls + n and fld.stats["stuck"] == stuck + n
-            assert np.abs(d.qvel).max() <= 1e-15  # at rest to round-off
-        mujoco.mj_forward(m, d)  # a user's forward pass between steps is evaluated afresh
-        mujoco.mj_step(m, d)  # ... and so is the next step's first stage, at the same time
-        assert fld.stats["calls"] == calls + 5
+    for _ in range(300):  # released at rest, partly submerged: sinks a little and stops
+        mujoco.mj_step(m, d)
+    calls, stuck = fld.stats_of(d)["calls"], fld.stats_of(d)["stuck"]
+    for n in range(1, 4):
+        mujoco.mj_step(m, d)
+        assert fld.stats_of(d)["calls"] == calls + n and fld.stats_of(d)["stuck"] == stuck + n
+        assert np.abs(d.qvel).max() <= 1e-15  # at rest to round-off
+    mujoco.mj_forward(m, d)  # a user's forward pass between steps is evaluated afresh
+    mujoco.mj_step(m, d)  # ... and so is the next step's first stage, at the same time
+    assert fld.stats_of(d)["calls"] == calls + 5
 
 
-def test_interleaved_mjdata_of_one_field_step_as_if_alone():
-    """The pass keeps its work arrays (hold and freeze flags, culling rows, RK4 records) per
-    MjData: stepping two MjData in turn must give bit for bit what each gives stepped alone,
-    including a body the treatment holds at rest under RK4."""
+def test_interleaved_mjdata_of_one_model_step_as_if_alone():
+    """The engine keeps its state (hold and freeze flags, RK4 records) per MjData: stepping two
+    MjData in turn must give bit for bit what each gives stepped alone, including a body the
+    treatment holds at rest under RK4."""
     m = ball_model(option='integrator="RK4"')
     fld = GranularField(m)
     steps = 320  # the resting ball is held from ~step 250 on (previous test)
@@ -450,26 +450,27 @@ def test_interleaved_mjdata_of_one_field_step_as_if_alone():
     alone = []
     for moving in (False, True):
         d = fresh(moving)
-        with fld.installed():
-            for _ in range(steps):
-                mujoco.mj_step(m, d)
-        alone.append((d.qpos.copy(), d.qvel.copy()))
-    pair = [fresh(False), fresh(True)]
-    with fld.installed():
         for _ in range(steps):
-            for d in pair:
-                mujoco.mj_step(m, d)
-    assert fld.stats["stuck"] > 0  # the hold (RK4_HOLD records) was exercised
-    for d, (qpos, qvel) in zip(pair, alone, strict=True):
-        np.testing.assert_array_equal(d.qpos, qpos)
-        np.testing.assert_array_equal(d.qvel, qvel)
+            mujoco.mj_step(m, d)
+        alone.append(d)
+    pair = [fresh(False), fresh(True)]
+    for _ in range(steps):
+        for d in pair:
+            mujoco.mj_step(m, d)
+    assert fld.stats_of(pair[0])["stuck"] > 0  # the hold (RK4 records) was exercised
+    for d, one in zip(pair, alone, strict=True):
+        np.testing.assert_array_equal(d.qpos, one.qpos)
+        np.testing.assert_array_equal(d.qvel, one.qvel)
+        np.testing.assert_array_equal(d.plugin_state, one.plugin_state)
 
 
 def test_rk4_stage_rule_equals_the_reference():
+    """The engine's RK4 stage rule (rk4::StageHeld, through the library's test entry point)
+    against its plain statement, on one step's passes and on other patterns."""
     from field_reference import rk4_stage_held
 
-    from mjrft.field.rk4 import stage_held
-
+    prototype = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_double, ctypes.c_double, ctypes.c_void_p)
+    stage_held = prototype(("mjrft_test_stage_held", engine.library()))
     h, t0 = 0.003, 0.7
     # one step: stage 1 evaluated, 2-4 held; the next step's stage 1 (t0 + h) evaluated again
     steps = [t0, t0 + 0.5 * h, t0 + 0.5 * h, t0 + 1.0 * h, t0 + h, (t0 + h) + 0.5 * h]
@@ -481,80 +482,60 @@ def test_rk4_stage_rule_equals_the_reference():
         (other, [False, False, False, True, True, False, False]),
     ):
         rec, reference = np.zeros(2), [0.0, 0.0]
-        assert [bool(stage_held(t, h, rec)) for t in seq] == want
+        assert [bool(stage_held(t, h, rec.ctypes.data)) for t in seq] == want
         assert [rk4_stage_held(t, h, reference) for t in seq] == want
+        assert rec.tolist() == reference
 
 
-# A light ball just below the surface, sinking slowly: the implicit step moves it, and RK4's
-# later stages keep its first stage's twist and correction (mjrft.field.rk4.RK4_FROZEN).
-SINKING_BALL = BALL.replace('pos="0.01 -0.02 -0.004"', 'pos="0.01 -0.02 0.008"')
-SINKING = {"v": (0.001, 0.0, -0.01), "w": (0.3, -0.2, 0.1)}
-
-
-@pytest.mark.parametrize("start", ["moving", "resting", "sinking"])
-def test_python_material_path_follows_the_same_rk4_rule(start):
-    """A medium given as Python callables (evaluated in Python inside the compiled pass) follows
-    the same RK4 rule."""
-    if start == "sinking":
-        m = mujoco.MjModel.from_xml_string(scene_xml(SINKING_BALL, option='integrator="RK4"'))
-    else:
-        m = heavy_model(option='integrator="RK4"')
-    compiled = GranularField(m)
+def test_a_medium_of_python_callables_is_refused():
+    """The engine evaluates media given by coefficients; Python callables cannot run inside
+    MuJoCo's step."""
+    glass = mjrft.Material.preset("glass_beads")
     mat = mjrft.Material.from_callables(
-        compiled.material.fourier.alpha_x, compiled.material.fourier.alpha_z,
-        compiled.material.zeta, name="glass, callables",
-    )  # fmt: skip
-    fld = GranularField(m, material=mat)
-    rest = {"v": (0.0, 0.0, 0.0), "w": (0.0, 0.0, 0.0)}
-    motion = {"moving": SHOT, "resting": rest, "sinking": SINKING}[start]
-    a, _ = simulate(m, 40, fld=fld, motion=motion)
-    b, _ = simulate(m, 40, fld=compiled, motion=motion)
-    np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-9)
-    held = compiled.stats["calls"] < 4 * 40  # some steps held (resting), none (moving)
-    assert held == (start == "resting")
-    implicit = compiled.stats["implicit"]  # its RK4 stages keep the twist, evaluated anew
-    assert fld.stats["implicit"] == implicit and (implicit > 0 or start != "sinking")
+        glass.fourier.alpha_x, glass.fourier.alpha_z, glass.zeta, name="glass, callables"
+    )
+    with pytest.raises(SceneError, match="Python callables alone cannot run inside MuJoCo's step"):
+        ball_model({"material": mat})
 
 
-def test_compilation_works_while_installed_and_callback_restored():
+def test_a_model_without_the_plugin_feels_nothing_and_no_callback_is_set():
+    """The field lives in the models that carry the plugin: the same scene compiled without it
+    steps with no RFT beside one that has it, and MuJoCo's global passive callback stays unset."""
     m = ball_model()
+    d = mujoco.MjData(m)
+    set_motion(d)
+    other = mujoco.MjModel.from_xml_string(scene_xml(BALL))
+    d_other = mujoco.MjData(other)
+    set_motion(d_other)
+    with GranularField(m).installed():  # kept for old scripts: changes nothing
+        mujoco.mj_step(m, d)
+        mujoco.mj_step(other, d_other)
+    assert np.any(d.xfrc_applied[1] != 0)
+    assert np.array_equal(d_other.xfrc_applied, np.zeros((other.nbody, 6)))
     assert mujoco.get_mjcb_passive() is None
-    with GranularField(m).installed():
-        other = mujoco.MjModel.from_xml_string(scene_xml(BALL))
-        spec = mujoco.MjSpec.from_string(scene_xml(BALL))
-        spec.compile()
-        d = mujoco.MjData(other)
-        mujoco.mj_step(other, d)  # another model steps without the field
-        assert np.array_equal(d.xfrc_applied, np.zeros((other.nbody, 6)))
-    assert mujoco.get_mjcb_passive() is None
-    assert _callback.installed_models() == 0
 
 
-def test_two_fields_on_two_models_do_not_interfere():
+def test_two_models_stepped_in_turn_do_not_interfere():
     m1 = ball_model()
-    m2 = mujoco.MjModel.from_xml_string(scene_xml(TWO_BODIES, tagged=TWO_TAGS))
-    f1, f2 = GranularField(m1), GranularField(m2)
-    alone1, _ = simulate(m1, 100, fld=f1)
-    alone2, _ = simulate(m2, 100, fld=f2)
+    m2 = mjrft.load_model(scene_xml(TWO_BODIES, tagged=TWO_TAGS))
+    alone1, _ = simulate(m1, 100)
+    alone2, _ = simulate(m2, 100)
     d1, d2 = mujoco.MjData(m1), mujoco.MjData(m2)
     set_motion(d1)
     set_motion(d2)
     both1, both2 = [], []
-    with f1.installed(), f2.installed():
-        for _ in range(100):
-            mujoco.mj_step(m1, d1)
-            mujoco.mj_step(m2, d2)
-            both1.append(np.concatenate([d1.qpos, d1.qvel]))
-            both2.append(np.concatenate([d2.qpos, d2.qvel]))
+    for _ in range(100):
+        mujoco.mj_step(m1, d1)
+        mujoco.mj_step(m2, d2)
+        both1.append(np.concatenate([d1.qpos, d1.qvel]))
+        both2.append(np.concatenate([d2.qpos, d2.qvel]))
     np.testing.assert_array_equal(np.array(both1), alone1)
     np.testing.assert_array_equal(np.array(both2), alone2)
-    with f1.installed(), pytest.raises(RuntimeError, match="already installed"):
-        with GranularField(m1).installed():
-            pass
 
 
-def test_user_passive_callback_is_chained_and_restored():
+def test_a_users_passive_callback_runs_beside_the_engine():
     m = ball_model()
+    fld = GranularField(m)
     seen = []
 
     def user_cb(mm, dd):
@@ -563,28 +544,31 @@ def test_user_passive_callback_is_chained_and_restored():
     mujoco.set_mjcb_passive(user_cb)
     try:
         d = mujoco.MjData(m)
-        with GranularField(m).installed():
-            mujoco.mj_step(m, d)
+        set_motion(d)
+        mujoco.mj_step(m, d)
         assert seen == [True]
+        assert fld.stats_of(d)["calls"] == 1 and fld.wrench_of(d)[1, 2] > 0
         assert mujoco.get_mjcb_passive() is user_cb
     finally:
         mujoco.set_mjcb_passive(None)
 
 
-def test_non_finite_state_raises_naming_body_and_interpreter_survives():
+def test_non_finite_state_raises_naming_body_and_the_process_survives():
     # MuJoCo's own check resets NaN qvel before the forward pass unless autoreset is disabled.
     m = ball_model(option='><flag autoreset="disable"/></option><option')
     d = mujoco.MjData(m)
     set_motion(d)
-    fld = GranularField(m)
-    with fld.installed():
-        for _ in range(3):  # repeated escapes through mj_step must stay safe
-            d.qvel[0] = np.nan
-            with pytest.raises(FloatingPointError, match=r"body 'b'.*time .*\(step \d+\)"):
-                mujoco.mj_step(m, d)
-        d.qvel[:] = 0
-        mujoco.mj_step(m, d)
+    for _ in range(3):  # repeated errors out of mj_step must stay safe
+        d.qvel[0] = np.nan
+        with pytest.raises(mujoco.FatalError, match=r"body 'b'.*time .*\(step \d+\)"):
+            mujoco.mj_step(m, d)
+    d.qvel[:] = 0
+    mujoco.mj_step(m, d)
     assert np.all(np.isfinite(d.qpos))
+    probe = copy.copy(d)
+    probe.cvel[1, 3] = np.nan  # kinematics of a non-finite velocity (mj_forward would raise)
+    with pytest.raises(FloatingPointError, match=r"body 'b'.*time .*\(step \d+\)"):
+        GranularField(m).wrench(probe)  # the explicit evaluation refuses it too
 
 
 # ------------------------------------------------------------------ MJCF errors
@@ -641,9 +625,8 @@ def test_mjcf_errors_name_the_culprit(custom, geom, match):
     xml = xml_with(custom, geom or '<geom name="ball" size="0.01"/>').replace(
         "<custom>", asset + "<custom>"
     )
-    m = mujoco.MjModel.from_xml_string(xml)
     with pytest.raises(SceneError, match=match):
-        GranularField(m)
+        mjrft.load_model(xml)
 
 
 def test_world_geom_cannot_intrude():
@@ -651,7 +634,7 @@ def test_world_geom_cannot_intrude():
         MAT + '<tuple name="mjrft:intruders"><element objtype="geom" objname="w" prm="0"/></tuple>'
     ).replace("<worldbody>", '<worldbody><geom name="w" size="0.01"/>')
     with pytest.raises(SceneError, match="geom 'w' belongs to the world body"):
-        GranularField(mujoco.MjModel.from_xml_string(xml))
+        mjrft.load_model(xml)
 
 
 def test_material_from_mjcf_coefficients_and_zeta():
@@ -660,8 +643,8 @@ def test_material_from_mjcf_coefficients_and_zeta():
         '<numeric name="mjrft:zeta" data="330000"/>'
         f'<numeric name="mjrft:coefficients" data="{li}"/>'
     )
-    m1 = mujoco.MjModel.from_xml_string(xml_with(custom + TAG))
-    m2 = mujoco.MjModel.from_xml_string(xml_with(MAT + TAG))
+    m1 = mjrft.load_model(xml_with(custom + TAG))
+    m2 = mjrft.load_model(xml_with(MAT + TAG))
     d1, d2 = mujoco.MjData(m1), mujoco.MjData(m2)
     for d in (d1, d2):
         d.qpos[2] = -0.02

@@ -1,4 +1,5 @@
-"""The layers: mjrft.core imports no mujoco, and no module imports from a layer above its own."""
+"""The layers: mjrft.core imports no mujoco (the engine library included), and no module imports
+from a layer above its own."""
 
 import ast
 import subprocess
@@ -54,9 +55,11 @@ def test_no_module_imports_from_a_layer_above(layer):
 
 
 def test_core_imports_no_mujoco_rerun_or_plotting():
+    """Nor does loading the engine library through the core layer (mjrft.core.engine: ctypes)."""
     modules = sorted(f"mjrft.core.{p.stem}" for p in (PACKAGE / "core").glob("*.py"))
     code = (
         f"import sys, mjrft, mjrft.app.demos, {', '.join(modules)}; "
+        "mjrft.core.engine.library(); mjrft.core.engine.layout(); "
         "bad = [m for m in ('mujoco', 'rerun', 'matplotlib', 'dm_control') if m in sys.modules]; "
         "print(bad); sys.exit(1 if bad else 0)"
     )
@@ -65,24 +68,22 @@ def test_core_imports_no_mujoco_rerun_or_plotting():
 
 
 def test_the_field_and_the_public_calls_run_without_scipy():
-    """numba's matrix products call BLAS through scipy (and a BLAS may start threads): the
-    compiled code does its small products itself, so none of it needs scipy."""
+    """scipy is only a test dependency (dm-control brings it too): the field, its Python face
+    and the public calls run without it."""
     script = """
 import sys
 sys.modules["scipy"] = None  # any import of scipy fails
 import mujoco, numpy as np, mjrft
-from mjrft.field import GranularField
 from mjrft.app import demos
-m = mujoco.MjModel.from_xml_path(sys.argv[1])
+m = mjrft.load_model(sys.argv[1])
 d = mujoco.MjData(m)
 mujoco.mj_resetDataKeyframe(m, d, 0)
-f = GranularField(m)
-with f.installed():
-    for _ in range(1500):  # falls, then rests: the treatment's stick and slip paths run
-        mujoco.mj_step(m, d)
+f = mjrft.GranularField(m)
+for _ in range(1500):  # falls, then rests: the treatment's stick and slip paths run
+    mujoco.mj_step(m, d)
 b = m.body("sphere").id
 assert abs(f.wrench_of(d)[b, 2] / (m.body_mass[b] * 9.81) - 1) < 1e-6, f.wrench_of(d)[b]
-assert f.stats["stuck"] > 0
+assert f.stats_of(d)["stuck"] > 0
 assert demos.ellipsoid_pitch(n_triangles=300).force[:, 2].max() > 0
 print("ok")
 """

@@ -2,7 +2,6 @@
 
 import warnings
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -26,7 +25,8 @@ def scene(
 
 
 def field(xml: str, **kw) -> GranularField:
-    return GranularField(mujoco.MjModel.from_xml_string(xml), **kw)
+    """The field of xml loaded with the engine plugin (kw: mjrft.SceneOptions fields)."""
+    return GranularField(mjrft.load_model(xml, **kw))
 
 
 GLASS = '<text name="mjrft:material" data="glass_beads"/>'

@@ -3,7 +3,6 @@
 import functools
 import math
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -130,8 +129,8 @@ SCENE = """<mujoco><custom><text name="mjrft:material" data="glass_beads"/>{extr
 
 
 def field_for(extra="", prm_a="0", **kw):
-    model = mujoco.MjModel.from_xml_string(SCENE.format(extra=extra, prm_a=prm_a))
-    return GranularField(model, **kw)
+    """The field of SCENE loaded with the engine plugin (kw: mjrft.SceneOptions fields)."""
+    return GranularField(mjrft.load_model(SCENE.format(extra=extra, prm_a=prm_a), **kw))
 
 
 def test_tolerance_in_mjcf_and_python():

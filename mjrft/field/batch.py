@@ -1,111 +1,93 @@
 """Many copies of one granular scene stepped together on MuJoCo's threaded batch.
 
-``mujoco.batch.Batch`` steps many simulations of one model on a thread pool and refuses Python
-callbacks, so here the granular forces enter the way the design card describes for batches:
-through ``xfrc_applied`` between steps. Each substep: one native call computes the RFT wrenches of
-every copy from the bound position- and velocity-stage fields (``mjrft.field.passive.batch``),
-``xfrc_applied = user + RFT`` is written, and the batch steps with ``stage=mjSTAGE_VEL``, which
-leaves those fields current at the new state (a persistent batch then continues from them, so
-this costs no extra forward pass). The RFT pass runs on ``nthread`` Python threads over disjoint
-sets of copies (the native call releases the GIL), between MuJoCo's batch steps, so the two
-never compete for cores. Each copy gets the field's one compiled pass in its explicit form
-(``mjrft.field.passive``: the force is evaluated at the state at the start of the substep and
-held over it), so a batch gives the same trajectories as ``GranularField.wrench`` on single
-MjData, bit for bit (tests/test_batch.py).
+A model from ``mjrft.load_model`` carries the engine plugin ``mjrft.granular``, and
+``mujoco.batch.Batch`` runs a model's engine plugins inside each copy's ``mj_step``, with each
+copy's engine state in its own ``plugin_state`` (part of the batch's state rows). So the medium
+acts in a batch of such a model with nothing added: ``BatchedField`` steps ``nsim`` copies of the
+plugin model on MuJoCo's threads, and each copy gets exactly what ``mj_step`` gives one MjData
+stepped alone from the same MjData (the installed pass: low-speed treatment, RK4 stage rule,
+deforming ground), bit for bit, at any thread count (tests/test_batch.py). On top of a bare
+``Batch`` it keeps the user's applied forces apart from the field's (``user_xfrc``), reads every
+copy's engine state (``wrench``, ``stats``, ``state_array``, ``soil``), and keeps each step a
+full ``mj_step`` of every copy.
+
+What a script written for the explicit scheme (the field evaluated by ``GranularField.wrench``
+at the start of each substep and held over it, ``xfrc_applied = user + wrench``) finds here:
+
+* the physics is the plugin's, that of ``mj_step`` on single MjData: under Euler and the
+  implicit integrators it agrees with the explicit scheme to round-off; under RK4 the later
+  stages follow the engine's stage rule instead of holding the first stage's wrench;
+* ``nthread`` is the batch's thread count only: the field runs inside MuJoCo's step, on
+  MuJoCo's threads;
+* ``forward`` is needed only to read derived fields (or ``wrench``) of states you wrote:
+  ``step`` is a full ``mj_step`` from the state rows;
+* derived fields bound through ``batch`` describe the state before the last substep, as after
+  ``mj_step``;
+* a failing copy (a non-finite state, an intruder below the deforming ground) raises
+  ``mujoco.batch.SimulationError`` (a RuntimeError) naming the copies and the engine's message
+  (body and time); those copies keep the state they had before the call;
+* a medium given by Python callables is refused by ``mjrft.load_model`` already;
+* ``user_xfrc`` is written into the copies' ``xfrc_applied`` at every ``step``, which the
+  engine keeps as the user's part (its protocol for any MjData: ``GranularField.user_xfrc``).
+
+The copies keep one MjData each (``Batch(persistent=True)``): the engine keeps work arrays in
+the MjData's ``plugin_data`` from one pass to the next (the mechanism treatment's caches), which
+are not in the state rows, so copies sharing MjData (a plain batch) would not step as alone.
 """
 
 from __future__ import annotations
 
-import itertools
-import os
+import ctypes
 import threading
-from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
 import numpy as np
 from mujoco.batch import Batch
 
-from mjrft.field import passive
-from mjrft.field.granular_field import GranularField
+from mjrft.field import plugin
+from mjrft.field.granular_field import STATS, GranularField
+from mjrft.field.soil_view import Soil
 
-#: Fewest copies per RFT thread (below it, fewer threads).
-_MIN_COPIES_PER_THREAD = 4
+_NONE = mujoco.mjtStage.mjSTAGE_NONE.value
 
 
 class BatchedField:
-    """A GranularField applied to ``nsim`` simulations of its model on ``nthread`` threads.
+    """``nsim`` simulations of a GranularField's model (which carries the engine plugin) on
+    MuJoCo's threaded batch.
 
     Args:
-      field: the field (its model is the batch's model; Fourier-form materials only).
+      field: the field (``GranularField(mjrft.load_model(...))``); its model is the batch's.
       nsim: number of simulations (copies); they may differ in state and controls.
-      nthread: threads for MuJoCo's batch and for the RFT pass (default: all cores).
+      nthread: threads of MuJoCo's batch (default: all cores).
     Attributes:
       batch: the underlying ``mujoco.batch.Batch``: set initial states and controls through it
-        (``batch.qpos``, ``batch.ctrl``, ``batch.reset(key=...)``).
-      user_xfrc: (nsim, nbody, 6) your own applied forces [N, N m], world frame, at each body's
-        CoM; the RFT wrench is added to it every substep (``xfrc_applied`` itself is rewritten).
-      wrench: (nsim, nbody, 6) RFT wrenches of the last substep.
+        (``batch.qpos``, ``batch.ctrl``, ``batch.bind(name)``); its ``xfrc_applied`` is written
+        from ``user_xfrc`` at every ``step``.
+      field, model: the field and its model.
     """
 
-    _DERIVED = ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos")
-
     def __init__(self, field: GranularField, nsim: int, nthread: int | None = None) -> None:
-        if not field._native:
-            raise ValueError(
-                f"material {field.material.name!r} is given by Python callables; batched "
-                "stepping needs a Fourier-form material (a preset, a table, or zeta)"
-            )
         if nsim < 1:
             raise ValueError(f"nsim must be >= 1, got {nsim}")
         self.field = field
         self.model = field.model
-        kw = {} if nthread is None else {"nthread": nthread}
-        self.batch = Batch(self.model, nsim=nsim, persistent=True, **kw)
-        self._arrays = {name: self.batch.bind(name) for name in self._DERIVED}
+        self.batch = Batch(self.model, nsim=nsim, nthread=nthread or 0, persistent=True)
         self._xfrc = self.batch.bind("xfrc_applied")
-        self._time = self.batch.bind("time")
-        self._userdata = self.batch.bind("userdata")
+        self._plugin_state = self.batch.bind("plugin_state")
         self._user = np.zeros_like(self._xfrc)
-        self._wrench = np.zeros_like(self._xfrc)
-        # RFT threads: at least _MIN_COPIES_PER_THREAD copies each (a hand-off costs ~20 us).
-        n_rft = max(1, min(nthread or os.cpu_count() or 1, nsim // _MIN_COPIES_PER_THREAD))
-        bounds = np.linspace(0, nsim, n_rft + 1).round().astype(int)
-        # Each RFT thread has its own state (work arrays, counters in the field's stats); each
-        # copy an entry record pointing at its rows of the batch's arrays.
-        self._states = [field._counted_state() for _ in range(n_rft)]
-        self._entries = [
-            self._copy_entries(st, range(lo, hi))
-            for st, (lo, hi) in zip(self._states, itertools.pairwise(bounds.tolist()), strict=True)
-        ]
-        self._jobs = [
-            (field._tables.address, np.uint64(e.ctypes.data), len(e), passive.BATCH)
-            for e in self._entries
-        ]
-        self._starts = bounds[:-1].tolist()
+        self._offsets = _persistent_offsets(self.model)
+        wrench = self.state_array("wrench").reshape(nsim, self.model.nbody, 6)
+        wrench.flags.writeable = False
+        self._wrench = wrench
         self._stepping = threading.Lock()
-        self._pool = ThreadPoolExecutor(n_rft - 1) if n_rft > 1 else None
 
-    def _copy_entries(self, st, sims: range) -> np.ndarray:
-        """Entry records of copies sims: their rows of the bound arrays, their user wrenches
-        and output rows, and the thread state st's work arrays."""
-        out = np.repeat(st.entry, len(sims))
-        rows = {**self._arrays, "user_in": self._user, "wrench": self._wrench}
-        nsoil = self.field._tables.arrays.nsoil
-        for i, sim in enumerate(sims):
-            views = {name: arr[sim] for name, arr in rows.items()}
-            if self.field.deforms:  # each copy's ground: its userdata, stamped with its time
-                views["time"] = self._time[sim : sim + 1]
-                views["userdata"] = self._userdata[sim, self._userdata.shape[1] - nsoil :]
-            for name, view in views.items():
-                if not view.flags.c_contiguous:  # the entry describes each copy's rows
-                    raise RuntimeError(f"mujoco.batch's {name} rows are not contiguous")
-                out[name][i] = view.ctypes.data
-        return out
-
+    # ------------------------------------------------------------------ inputs and outputs
     @property
     def user_xfrc(self) -> np.ndarray:
-        """(nsim, nbody, 6) your applied wrenches [N, N m], world frame, at each body's CoM;
-        write in place or assign (assignment copies into the same array)."""
+        """(nsim, nbody, 6) your applied wrenches [N, N m], world frame, at each body's CoM,
+        written into each copy's ``xfrc_applied`` at every ``step`` (the engine adds the field's
+        wrench to the tagged rows inside the step); write in place or assign (assignment copies
+        into the same array)."""
         return self._user
 
     @user_xfrc.setter
@@ -114,29 +96,78 @@ class BatchedField:
 
     @property
     def wrench(self) -> np.ndarray:
-        """(nsim, nbody, 6) RFT wrenches of the last substep [N, N m] (read only: rewritten)."""
+        """(nsim, nbody, 6) each copy's RFT wrench of its most recent pass (inside the last
+        substep, or ``forward``), world frame, torque about each CoM [N, N m]: a read-only view
+        of the engine's ``wrench`` in the copies' ``plugin_state`` (``GranularField.wrench_of``
+        of each copy)."""
         return self._wrench
+
+    @property
+    def stats(self) -> dict[str, int]:
+        """The engine's work counters (``GranularField.stats_of``) summed over the copies, since
+        each was last reset."""
+        counts = self.state_array("stats").sum(axis=0)
+        return dict(zip(STATS, (int(x) for x in counts), strict=True))
+
+    def state_array(self, name: str) -> np.ndarray:
+        """(nsim, size) view of the engine's persistent array `name` (engine/fields.h) in every
+        copy's ``plugin_state`` (int64 for the engine's i64 arrays); a write is the copy's state
+        at its next step. The engine's work arrays live outside the state rows: read them with
+        ``GranularField.state_array`` on ``batch.get_data(sim)``."""
+        if name not in self._offsets:
+            persistent = ", ".join(self._offsets)
+            raise KeyError(
+                f"{name!r} is not one of the engine's persistent arrays (the ones in each copy's "
+                f"plugin_state): {persistent}"
+            )
+        start, size, dtype = self._offsets[name]
+        view = self._plugin_state[:, start : start + size]
+        return view.view(np.int64) if dtype is np.int64 else view
+
+    def soil(self, sim: int) -> Soil:
+        """The deforming ground of copy sim (read and write; ``mjrft.field.soil_view``)."""
+        if not self.field.deforms:
+            raise ValueError(
+                "this field's ground does not deform: add <numeric name='mjrft:deform_cell' "
+                "data='0.002'/> (and mjrft:region) or load the model with deform_cell="
+            )
+        return Soil(
+            self.field.scene.surface, self.state_array("soil")[sim],
+            self.state_array("soil_stats")[sim],
+        )  # fmt: skip
 
     @property
     def nsim(self) -> int:
         """Number of simulations."""
         return self.batch.nsim
 
+    # ------------------------------------------------------------------ stepping
     def reset(self, keyframe: int | np.ndarray = -1) -> None:
-        """Reset every simulation (to a keyframe, one each, or -1: model defaults)."""
+        """Reset every simulation (to a keyframe, one each, or -1: model defaults), engine state
+        included, then ``mj_forward`` each (as ``forward``)."""
         self.batch.reset(keyframe=keyframe)
+        self._afresh()
 
     def forward(self) -> None:
-        """Make the derived fields current after you write states (qpos, qvel, act) directly."""
-        self.batch.forward(stage=mujoco.mjtStage.mjSTAGE_VEL.value)
+        """``mj_forward`` on every copy: derived fields and the engine's pass (``wrench``) of the
+        states you wrote (qpos, qvel, act). Stepping does not need it."""
+        self.batch.forward()
+        self._afresh()
+
+    def _afresh(self) -> None:
+        # A persistent batch would continue its next step from the stages just computed,
+        # reusing the engine's pass (velocity stage), which read xfrc_applied before step()
+        # wrote user_xfrc there: that step would lose the field's wrench. Marking no stage
+        # computed makes every step a full mj_step.
+        self.batch.forward(stage=_NONE)
 
     def step(self, nstep: int = 1) -> None:
-        """Advance every simulation by nstep substeps with granular forces acting in each.
+        """Advance every simulation by nstep calls to ``mj_step``, with ``xfrc_applied`` set to
+        ``user_xfrc`` before the first.
 
-        The derived fields must describe the current states: they do after ``reset``, ``step``
-        and ``forward``; call ``forward`` after writing states yourself. One thread at a time
-        (the batch's work arrays are shared by its copies): a second concurrent call raises
-        RuntimeError.
+        One thread at a time (the batch reports failures through state that the next call
+        overwrites): a second concurrent call raises RuntimeError. A copy MuJoCo or the engine
+        fails in raises ``mujoco.batch.SimulationError`` naming it; the others ran to completion.
         """
         if not self._stepping.acquire(blocking=False):
             raise RuntimeError(
@@ -144,56 +175,38 @@ class BatchedField:
                 "thread at a time (make one BatchedField per thread)"
             )
         try:
-            self._step(nstep)
+            self._xfrc[...] = self._user
+            self.batch.step(nstep=nstep)
         finally:
             self._stepping.release()
 
-    def _step(self, nstep: int) -> None:
-        vel = mujoco.mjtStage.mjSTAGE_VEL.value
-        for _ in range(nstep):
-            if self._pool is None:
-                status = [self._rft(0)]
-            else:  # the last slice on this thread, the others on the pool
-                jobs = [self._pool.submit(self._rft, k) for k in range(len(self._jobs) - 1)]
-                status = [self._rft(len(self._jobs) - 1)]
-                status = [j.result() for j in jobs] + status
-            bad = [st for st in status if st is not None]
-            if bad:
-                sim = min(bad)
-                raise FloatingPointError(
-                    f"simulation {sim} of the batch has a non-finite intruding-body state (or "
-                    "an intruder below the deforming ground) at "
-                    f"time {float(self.batch.bind('time')[sim]):.6g} s; the granular field "
-                    "refuses to feed NaN forward"
-                )
-            np.add(self._user, self._wrench, out=self._xfrc)
-            self.batch.step(stage=vel)
-
-    def _rft(self, k: int) -> int | None:
-        """RFT wrenches of the copies of job k; the first bad copy's index or None."""
-        status = passive.batch(*self._jobs[k])
-        return None if status == passive.OK else self._starts[k] + (-1 - status)
-
     def close(self) -> None:
-        """Stop the RFT threads (also done when the object is garbage collected)."""
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        """Release the batch (one MjData per copy) and the views into it; the object cannot
+        step afterwards."""
+        for name in ("batch", "_xfrc", "_plugin_state", "_wrench"):
+            self.__dict__.pop(name, None)
 
-    def __del__(self) -> None:
-        pool = getattr(self, "_pool", None)
-        if pool is not None:
-            pool.shutdown(wait=False)
+
+def _persistent_offsets(model: mujoco.MjModel) -> dict[str, tuple[int, int, type]]:
+    """Name -> (start, size, dtype) of each engine array that lives in ``plugin_state``: the
+    same in every MjData of model (read from a probe MjData)."""
+    lib, instance = plugin.library(), plugin.instance(model)
+    probe = mujoco.MjData(model)
+    m, d = ctypes.c_void_p(model._address), ctypes.c_void_p(probe._address)
+    base, out = probe.plugin_state, {}
+    for kind, name in plugin.layout().state:
+        address = lib.mjrft_state_array(m, d, instance, name.encode())
+        size = lib.mjrft_state_size(m, d, instance, name.encode())
+        start = (address - base.ctypes.data) // base.itemsize if address else -1
+        if 0 <= start and start + size <= base.shape[0]:
+            out[name] = (start, size, np.int64 if kind == "i64" else np.float64)
+    return out
 
 
 def single_step_reference(
     field: GranularField, data: mujoco.MjData, user: np.ndarray | None = None
 ) -> None:
-    """The single-MjData explicit path a BatchedField substep reproduces (for tests/benchmarks).
-
-    mj_forward; xfrc_applied = user + field.wrench(data); mj_step.
-    """
-    mujoco.mj_forward(field.model, data)
-    u = np.zeros((field.model.nbody, 6)) if user is None else user
-    data.xfrc_applied[:] = u + field.wrench(data, user_xfrc=u)
+    """The single-MjData step that a BatchedField substep equals (for tests and benchmarks):
+    ``xfrc_applied = user`` (zeros if None), then ``mj_step``."""
+    data.xfrc_applied[:] = 0.0 if user is None else user
     mujoco.mj_step(field.model, data)
