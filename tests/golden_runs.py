@@ -3,23 +3,25 @@
 Each scenario returns a dict of arrays (states sampled along a run). ``tests/golden/*.npz`` hold
 the arrays the code produced when they were generated; ``tests/test_golden.py`` reruns the
 scenarios and compares. They pin behaviour across refactors: they are not physics references.
-Regenerate (only when a change of results is intended, and say why in the commit):
+Regenerate (only when a change of results is intended, and say why in the commit), all of them
+or the scenarios named:
 
-    python tests/golden_runs.py --write
+    python tests/golden_runs.py --write [NAME ...]
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import platform
 from pathlib import Path
 
 import mujoco
 import numpy as np
+from mujoco.batch import Batch
 
 import mjrft
 from mjrft import simulate
-from mjrft.batch import BatchedField
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -29,13 +31,13 @@ SAMPLE = 25
 
 
 def _rig(name: str, duration: float, n_triangles: int | None, integrator: str | None = None):
-    model = simulate.load_model(str(MODELS / f"{name}.xml"))
+    model = simulate.load_model(str(MODELS / f"{name}.xml"), n_triangles=n_triangles)
     simulate.configure(model, None, integrator)
-    fld = mjrft.GranularField(model, n_triangles=n_triangles)
+    fld = mjrft.GranularField(model)
     states = []
 
     def observe(step, time, data):
-        states.append(np.concatenate([[time], data.qpos, data.qvel, fld.last_wrench.ravel()]))
+        states.append(np.concatenate([[time], data.qpos, data.qvel, fld.wrench_of(data).ravel()]))
 
     data, _ = simulate.run(model, duration, fld=fld, observer=observe, observe_every=SAMPLE)
     return {"states": np.array(states), "final": np.concatenate([data.qpos, data.qvel])}
@@ -64,55 +66,97 @@ def _thrown(integrator: str, lowered: bool = False, steps: int = 1500):
     xml = THROWN.format(integrator=integrator, density=2500 if lowered else 8000)
     if lowered:
         xml = xml.replace('pos="0 0 0.004"', 'pos="0 0 0.0125"')
-    model = mujoco.MjModel.from_xml_string(xml)
+    model = mjrft.load_model(xml)
     fld = mjrft.GranularField(model)
     data = mujoco.MjData(model)
     data.qvel[:] = (0, 0, 0, 0.2, -0.1, 0) if lowered else (0.3, -0.1, -0.5, 4.0, -2.0, 6.0)
     weight = float(model.body_mass[1]) * 9.81
     states = []
-    with fld.installed():
-        for i in range(steps):
-            if lowered:  # the user holds it, then lets go over 1 s
-                data.xfrc_applied[1] = (0, 0, weight * max(0.0, 1.0 - i / 1000), 0, 0, 0)
-            mujoco.mj_step(model, data)
-            if i % SAMPLE == 0:
-                states.append(np.concatenate([data.qpos, data.qvel, data.xfrc_applied[1]]))
-    return {"states": np.array(states), "stats": np.array(list(fld.stats.values()))}
+    for i in range(steps):
+        if lowered:  # the user holds it, then lets go over 1 s
+            data.xfrc_applied[1] = (0, 0, weight * max(0.0, 1.0 - i / 1000), 0, 0, 0)
+        mujoco.mj_step(model, data)
+        if i % SAMPLE == 0:
+            states.append(np.concatenate([data.qpos, data.qvel, data.xfrc_applied[1]]))
+    return {"states": np.array(states), "stats": np.array(list(fld.stats_of(data).values()))}
 
 
 def _explicit(steps: int = 800):
-    """The explicit path: xfrc_applied = user + field.wrench(data, user_xfrc=user) each step."""
-    model = simulate.load_model(str(MODELS / "sphere_drop.xml"))
-    fld = mjrft.GranularField(model, n_triangles=600)
+    """GranularField.wrench along a run: a sphere dropped with a user push in xfrc_applied (the
+    treatment must balance it once the sphere rests); at every sampled state, the explicit
+    evaluation (``wrench(..., user_xfrc=push)`` on a copy of the state before the step) beside
+    the wrench the step's own pass computed there (``wrench_of``). Euler: the step's pass
+    evaluates the state the step starts from."""
+    model = simulate.load_model(str(MODELS / "sphere_drop.xml"), n_triangles=600)
+    fld = mjrft.GranularField(model)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     data.qvel[:6] = (0.01, 0.0, -0.05, 0.0, 2.0, 0.0)
     user = np.zeros((model.nbody, 6))
-    states = []
+    states, explicit, installed = [], [], []
     for i in range(steps):
         user[1, 0] = 0.02 * np.sin(0.01 * i)  # a user push [N] the treatment must balance
-        mujoco.mj_forward(model, data)
-        data.xfrc_applied[:] = user + fld.wrench(data, user_xfrc=user)
+        data.xfrc_applied[1, 0] = user[1, 0]
+        sampled = i % SAMPLE == 0
+        if sampled:
+            before = copy.copy(data)
         mujoco.mj_step(model, data)
-        if i % SAMPLE == 0:
+        if sampled:
+            mujoco.mj_forward(model, before)  # its kinematics (the copy's own pass runs too)
+            explicit.append(fld.wrench(before, user_xfrc=user)[1])
+            installed.append(fld.wrench_of(data)[1].copy())
             states.append(np.concatenate([data.qpos, data.qvel, data.xfrc_applied[1]]))
-    return {"states": np.array(states)}
+    return {
+        "states": np.array(states),
+        "explicit": np.array(explicit),
+        "installed": np.array(installed),
+    }
+
+
+# Copies of the dropped sphere thrown differently, stepped on MuJoCo's threaded batch: the plugin
+# runs inside each copy's mj_step, its state in the copy's plugin_state.
+BATCH_QVEL = {2: (-0.02, -0.1, 0.0), 4: (0.0, 1.0, -3.0)}  # dof -> per copy [m/s, rad/s]
+
+
+def _batch_model() -> mujoco.MjModel:
+    return simulate.load_model(str(MODELS / "sphere_drop.xml"), n_triangles=600)
 
 
 def _batch(steps: int = 600):
-    model = simulate.load_model(str(MODELS / "sphere_drop.xml"))
-    bf = BatchedField(mjrft.GranularField(model, n_triangles=600), nsim=3, nthread=1)
-    bf.reset(keyframe=0)
-    bf.batch.bind("qvel")[:, 2] = (-0.02, -0.1, 0.0)
-    bf.batch.bind("qvel")[:, 4] = (0.0, 1.0, -3.0)
-    bf.forward()
+    """The copies on ``mujoco.batch.Batch``: qpos, qvel and the sphere's xfrc_applied row (the
+    RFT the plugin wrote) of every copy, sampled."""
+    model = _batch_model()
+    batch = Batch(model, nsim=3, nthread=1)
+    batch.reset(keyframe=0, stage=mujoco.mjtStage.mjSTAGE_NONE)  # as mj_resetDataKeyframe
+    qpos, qvel, xfrc = batch.bind("qpos"), batch.bind("qvel"), batch.bind("xfrc_applied")
+    for dof, values in BATCH_QVEL.items():
+        qvel[:, dof] = values
     states = []
     for i in range(steps):
-        bf.step()
+        batch.step()
         if i % SAMPLE == 0:
-            states.append(np.concatenate([bf.batch.bind("qpos"), bf.batch.bind("qvel")], axis=1))
-    bf.close()
+            states.append(np.concatenate([qpos, qvel, xfrc[:, 1]], axis=1))
     return {"states": np.array(states)}
+
+
+def batch_singles(steps: int = 600) -> np.ndarray:
+    """``_batch``'s states from one MjData per copy stepped by mj_step (what the batch must give
+    bit for bit)."""
+    model = _batch_model()
+    datas = []
+    for sim in range(3):
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+        for dof, values in BATCH_QVEL.items():
+            data.qvel[dof] = values[sim]
+        datas.append(data)
+    states = []
+    for i in range(steps):
+        for data in datas:
+            mujoco.mj_step(model, data)
+        if i % SAMPLE == 0:
+            states.append([np.concatenate([d.qpos, d.qvel, d.xfrc_applied[1]]) for d in datas])
+    return np.array(states)
 
 
 #: name -> scenario; each takes ~0.1-2 s on a 2-core machine.
@@ -136,14 +180,21 @@ SCENARIOS = {
 
 
 def fingerprint() -> str:
-    """The machine and versions a golden file was generated with (numba compiles for the host
-    CPU; bit-identity is pinned on that combination)."""
-    import llvmlite.binding as llvm
+    """The platform and versions a golden file was generated with; where they match, the test
+    compares bit for bit.
 
+    The CPU model is not part of it: the engine is C++ built with ``-ffp-contract=off`` and no
+    fast-math, so it fuses a multiply-add only where the code says ``std::fma`` (exact on any
+    CPU) and reorders nothing, whatever the compiler and ``-march``: its arithmetic is IEEE-754's,
+    the same on every CPU of an architecture (the files reproduce bit for bit on AMD Zen 3 and
+    on an Intel Xeon with AVX-512). What can still change the numbers: the architecture, the C
+    library (its libm's ``hypot`` in the engine), MuJoCo's release (its own arithmetic) and
+    NumPy's (the engine's tables and the tests' arrays are built with it)."""
     return "|".join(
         [
             platform.machine(),
-            llvm.get_host_cpu_name(),
+            platform.system(),
+            "-".join(platform.libc_ver()),
             mujoco.__version__,
             np.__version__,
         ]

@@ -87,7 +87,7 @@ PLATE = """
 
 
 def plate_force(size, pos, vel, dynamic=""):
-    m = mujoco.MjModel.from_xml_string(
+    m = mjrft.load_model(
         PLATE.format(size=" ".join(map(str, size)), pos=" ".join(map(str, pos)), dynamic=dynamic)
     )
     d = mujoco.MjData(m)
@@ -140,18 +140,17 @@ def drop(dynamic: str, integrator: str = "Euler", throw=(0.0,) * 6):
     """A 1 cm steel sphere dropped from 5 cm (enters at ~1 m/s), optionally thrown (initial
     qvel: world linear [m/s], then angular [rad/s]): (lowest centre height [m], mechanical
     energy per step [J], final speed [m/s])."""
-    m = mujoco.MjModel.from_xml_string(SPHERE.format(dynamic=dynamic, integrator=integrator))
+    m = mjrft.load_model(SPHERE.format(dynamic=dynamic, integrator=integrator))
     d = mujoco.MjData(m)
     d.qvel[:] = throw
     mass, inertia, g = m.body_mass[1], m.body_inertia[1], -m.opt.gravity[2]
     energy, low = [], np.inf
-    with GranularField(m).installed():
-        for _ in range(1200):
-            mujoco.mj_step(m, d)
-            w = d.qvel[3:]
-            energy.append(0.5 * mass * d.qvel[:3] @ d.qvel[:3] + 0.5 * inertia @ (w * w)
-                          + mass * g * d.qpos[2])  # fmt: skip
-            low = min(low, d.qpos[2])
+    for _ in range(1200):
+        mujoco.mj_step(m, d)
+        w = d.qvel[3:]
+        energy.append(0.5 * mass * d.qvel[:3] @ d.qvel[:3] + 0.5 * inertia @ (w * w)
+                      + mass * g * d.qpos[2])  # fmt: skip
+        low = min(low, d.qpos[2])
     return low, np.array(energy), float(np.linalg.norm(d.qvel))
 
 
@@ -186,7 +185,7 @@ def test_bad_dynamic_settings_are_named(data, message):
         dynamic=f'<numeric name="mjrft:dynamic" data="{data}"/>', integrator="Euler"
     )
     with pytest.raises(SceneError, match=f"mjrft:dynamic.*{message}"):
-        GranularField(mujoco.MjModel.from_xml_string(xml))
+        mjrft.load_model(xml)
 
 
 def test_a_density_in_the_wrong_units_warns_and_callables_are_refused():
@@ -204,12 +203,11 @@ def test_a_density_in_the_wrong_units_warns_and_callables_are_refused():
 
 def test_the_field_and_mjrft_run_override_the_mjcf(tmp_path):
     xml = SPHERE.format(dynamic=DYNAMIC, integrator="Euler")
-    model = mujoco.MjModel.from_xml_string(xml)
-    assert GranularField(model).material.dynamic == pytest.approx(RHO_C * LAM)
-    assert GranularField(model, dynamic=0).material.dynamic == 0.0
-    assert GranularField(model, dynamic=(1000.0, 0.5)).material.dynamic == 500.0
+    assert GranularField(mjrft.load_model(xml)).material.dynamic == pytest.approx(RHO_C * LAM)
+    assert GranularField(mjrft.load_model(xml, dynamic=0)).material.dynamic == 0.0
+    assert GranularField(mjrft.load_model(xml, dynamic=(1000.0, 0.5))).material.dynamic == 500.0
     with pytest.raises(SceneError, match=r"dynamic = \(1, 2, 3\): expected rho_c"):
-        GranularField(model, dynamic=(1, 2, 3))
+        mjrft.load_model(xml, dynamic=(1, 2, 3))
     from mjrft.app import cli
 
     path = tmp_path / "ball.xml"

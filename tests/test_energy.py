@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 import pytest
 
+import mjrft
 from mjrft.field import GranularField
 
 _SPEC = importlib.util.spec_from_file_location(
@@ -37,7 +38,7 @@ GAINED_RK4 = [
     ("mesh", 0.5, 0.002, "RK4", 2),
     ("mesh", 5.0, 0.001, "RK4", 5),
 ]
-# The compiled pass and the plain reference round differently; over 140 steps of a body tumbling
+# The engine's pass and the plain reference round differently; over 140 steps of a body tumbling
 # into the medium their states agree to this (relative; absolute 1e-3 times it).
 PATH_RTOL = 1e-7
 
@@ -56,21 +57,31 @@ def _states(m, d, steps):
     return np.array(out)
 
 
+def _at_throw(model: mujoco.MjModel, case: tuple) -> mujoco.MjData:
+    """An MjData of model at the moment of energy.thrown(case)'s throw (qpos, qvel)."""
+    _, thrown = energy.thrown(case)
+    d = mujoco.MjData(model)
+    d.qpos[:], d.qvel[:] = thrown.qpos, thrown.qvel
+    return d
+
+
 def test_the_rk4_energy_guard_follows_the_plain_reference():
-    """The compiled guard of RK4's later stages against the reference, which balances the step
-    by running RK4's stages written out (field_reference.rk4_step_gain), on a throw of a 5 kg
-    prism. With the clipped quadrature (mjrft.core.quadrature) its stage forces no longer jump
-    enough for the guard to hold a stage (none of 24 RK4 throws of energy.SHAPES at 5 and 50 kg
-    did), so this now pins the path that decides not to."""
+    """The engine's guard of RK4's later stages (the plugin, in mj_step) against the reference,
+    which balances the step by running RK4's stages written out
+    (field_reference.rk4_step_gain) as MuJoCo's passive callback on the scene compiled without
+    the plugin, on a throw of a 5 kg prism. With the clipped quadrature (mjrft.core.quadrature)
+    its stage forces no longer jump enough for the guard to hold a stage (none of 24 RK4 throws
+    of energy.SHAPES at 5 and 50 kg did), so this now pins the path that decides not to."""
     case, steps = ("mesh", 5.0, 0.002, "RK4", 3), 140
-    m, d = energy.thrown(case)
-    with GranularField(m).installed():
-        fast = _states(m, d, steps)
-    m, d = energy.thrown(case)
+    xml = energy.scene(*case[:4])
+    m = mjrft.load_model(xml)
+    fast = _states(m, _at_throw(m, case), steps)
+    plain = mujoco.MjModel.from_xml_string(xml)
     reference = ref.ReferenceField(GranularField(m))
+    d = _at_throw(plain, case)
     mujoco.set_mjcb_passive(reference.apply)
     try:
-        slow = _states(m, d, steps)
+        slow = _states(plain, d, steps)
     finally:
         mujoco.set_mjcb_passive(None)
     np.testing.assert_allclose(fast, slow, rtol=PATH_RTOL, atol=PATH_RTOL * 1e-3)

@@ -1,9 +1,10 @@
 """Golden trajectories (tests/golden_runs.py): every production path reproduces its pinned run.
 
-These pin behaviour across refactors; they are not physics references. On the machine and
-versions that generated a file the comparison is bit for bit (``array_equal``). numba compiles
-for the host CPU, so on another CPU the same code may round differently: there the runs are
-compared to ``OTHER_MACHINE_RTOL`` instead, and the test says so.
+These pin behaviour across refactors; they are not physics references. On the platform and
+versions that generated a file (``golden_runs.fingerprint``) the comparison is bit for bit
+(``array_equal``). Elsewhere (another architecture, C library, MuJoCo or NumPy) the same code may
+round differently: there the runs are compared to ``OTHER_MACHINE_RTOL`` instead, and the test
+says so.
 """
 
 import warnings
@@ -57,3 +58,19 @@ def test_golden_run_is_reproduced(name):
             f"({golden_runs.fingerprint()!r})",
             stacklevel=1,
         )
+
+
+def test_the_explicit_wrench_is_the_installed_pass():
+    """GranularField.wrench(state, user_xfrc=push) equals, bit for bit, the wrench the step's own
+    pass computed at that state with the push in xfrc_applied (free, stuck and sliding phases of
+    the dropped sphere; golden_runs._explicit)."""
+    got = golden_runs.SCENARIOS["explicit_sphere"]()
+    assert np.abs(got["installed"]).max() > 0.1  # N: the sphere is in the medium
+    np.testing.assert_array_equal(got["explicit"], got["installed"])
+
+
+def test_the_batch_copies_are_single_mjdata_runs():
+    """Each copy on mujoco.batch.Batch follows, bit for bit, one MjData stepped by mj_step."""
+    got = golden_runs.SCENARIOS["batch_sphere"]()["states"]
+    np.testing.assert_array_equal(got, golden_runs.batch_singles())
+    assert len({got[-1, i].tobytes() for i in range(got.shape[1])}) == got.shape[1]  # all differ

@@ -2,7 +2,8 @@
 
 Reduced-size versions of the stability criteria (the full grid is ``benchmarks/stability.py``);
 properties of the treatment's rules on arbitrary wrench laws, stated by the plain reference
-(tests/field_reference.py); and the compiled treatment checked against that reference.
+(tests/field_reference.py); and the engine's treatment (the mjrft.granular plugin's pass)
+checked against that reference.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import mujoco
 import numpy as np
 import pytest
 
+import mjrft
 from mjrft.body import trajectory_wrenches
 from mjrft.field import GranularField, SceneError, lowspeed
 
@@ -92,10 +94,24 @@ def _quasi_static_depth(fld: GranularField, size: np.ndarray, weight: float) -> 
     return float(brentq(lambda x: fz(x) - weight, 1e-6, 2 * size[-1]))
 
 
+def loaded_at(
+    xml: str, m: mujoco.MjModel, d: mujoco.MjData, **options
+) -> tuple[GranularField, mujoco.MjData]:
+    """xml loaded with other scene options (e.g. low_speed="off"; the options are the model's),
+    m's timestep and integrator, and an MjData of it at d's state (qpos, qvel; mj_forward): the
+    field and that MjData."""
+    other = mjrft.load_model(xml, **options)
+    other.opt.timestep, other.opt.integrator = m.opt.timestep, m.opt.integrator
+    data = mujoco.MjData(other)
+    data.qpos[:], data.qvel[:] = d.qpos, d.qvel
+    mujoco.mj_forward(other, data)
+    return GranularField(other), data
+
+
 def energy(m: mujoco.MjModel, d: mujoco.MjData) -> float:
     """Kinetic + gravitational potential energy of the free body [J] (datum z = 0) of the state
     in qpos, qvel (after mj_step the derived positions are those of the step's start, so the
-    kinematics are refreshed first; no passive callback runs)."""
+    kinematics are refreshed first; the engine's pass does not run in these stages)."""
     mujoco.mj_kinematics(m, d)
     mujoco.mj_comPos(m, d)
     mujoco.mj_energyPos(m, d)
@@ -116,7 +132,7 @@ SETTLE_CASES = [
 @pytest.mark.parametrize(("shape", "mass", "dt", "integrator"), SETTLE_CASES)
 def test_released_body_settles_and_stays(shape, mass, dt, integrator):
     xml, size = body_xml(shape, mass)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     m.opt.timestep, m.opt.integrator = dt, INTEGRATORS[integrator]
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     d = mujoco.MjData(m)
@@ -126,23 +142,22 @@ def test_released_body_settles_and_stays(shape, mass, dt, integrator):
     d_stop = stop_depth(fld, size[-1], weight)
     settle, hold = round(1.5 / dt), round(2.0 / dt)
     z, v, gain = [], [], []
-    with fld.installed():
-        mujoco.mj_forward(m, d)
-        e0 = energy(m, d)
-        for _ in range(settle + hold):
-            mujoco.mj_step(m, d)
-            e1 = energy(m, d)
-            gain.append((e1 - e0) / (E_ABS + E_REL * abs(e0)))
-            e0 = e1
-            z.append(d.qpos[2])
-            v.append(np.linalg.norm(d.qvel))
+    mujoco.mj_forward(m, d)
+    e0 = energy(m, d)
+    for _ in range(settle + hold):
+        mujoco.mj_step(m, d)
+        e1 = energy(m, d)
+        gain.append((e1 - e0) / (E_ABS + E_REL * abs(e0)))
+        e0 = e1
+        z.append(d.qpos[2])
+        v.append(np.linalg.norm(d.qvel))
     z, v = np.array(z), np.array(v)
     depth = size[-1] - z[-1]
     assert abs(depth - d_stop) <= DEPTH_TOL * d_stop, (depth, d_stop)
     assert np.ptp(z[settle:]) <= DRIFT_M
     assert v[settle:].max() <= SPEED_M_S
     assert max(gain) <= 1.0  # 2. energy: never gained beyond the tolerance in any step
-    assert fld.stats["stuck"] > 0
+    assert fld.stats_of(d)["stuck"] > 0
 
 
 @pytest.mark.parametrize("integrator", list(INTEGRATORS))
@@ -152,7 +167,7 @@ def test_slowly_lowered_body_rests_at_the_quasi_static_depth(shape, integrator):
     model), within 5 %. Sphere only: the slender ellipsoid's lowered end depth depends on the
     small tilts its slip phases pick up (docs/stability.md, "Results")."""
     xml, size = body_xml(shape, 1.0)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     m.opt.timestep, m.opt.integrator = 0.002, INTEGRATORS[integrator]
     d = mujoco.MjData(m)
     fld = GranularField(m)
@@ -169,13 +184,12 @@ def _lower(m, d, fld, weight, ramp_steps, after_steps):
     """Hold body 1 by an upward user force W (1 + cos(pi t / T)) / 2 lowered to 0 over
     ramp_steps, then let it rest after_steps; returns the largest tilt [deg] of its z axis."""
     tilt = 0.0
-    with fld.installed():
-        for i in range(ramp_steps + after_steps):
-            if i <= ramp_steps:
-                d.xfrc_applied[1] = 0.0
-                d.xfrc_applied[1, 2] = weight * 0.5 * (1 + math.cos(math.pi * i / ramp_steps))
-            mujoco.mj_step(m, d)
-            tilt = max(tilt, math.degrees(math.acos(min(1.0, d.xmat[1, 8]))))
+    for i in range(ramp_steps + after_steps):
+        if i <= ramp_steps:
+            d.xfrc_applied[1] = 0.0
+            d.xfrc_applied[1, 2] = weight * 0.5 * (1 + math.cos(math.pi * i / ramp_steps))
+        mujoco.mj_step(m, d)
+        tilt = max(tilt, math.degrees(math.acos(min(1.0, d.xmat[1, 8]))))
     return tilt
 
 
@@ -188,7 +202,7 @@ def test_very_slowly_lowered_ellipsoid_neither_rocks_nor_tips(integrator):
     upright at d_qs. Under RK4 the pure model in every stage tipped it too; its later stages
     now keep the first stage's twist and implicit correction."""
     xml, size = body_xml("ellipsoid", 1.0)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     m.opt.timestep, m.opt.integrator = 0.001, INTEGRATORS[integrator]
     d = mujoco.MjData(m)
     fld = GranularField(m)
@@ -200,7 +214,7 @@ def test_very_slowly_lowered_ellipsoid_neither_rocks_nor_tips(integrator):
     assert tilt < TILT_DEG, tilt
     assert abs(depth - d_qs) <= DEPTH_TOL * d_qs, (depth, d_qs)
     assert np.linalg.norm(d.qvel) <= SPEED_M_S
-    assert fld.stats["implicit"] > 0
+    assert fld.stats_of(d)["implicit"] > 0
 
 
 def test_implicit_step_damps_rocking_that_the_explicit_step_amplifies():
@@ -209,7 +223,7 @@ def test_implicit_step_damps_rocking_that_the_explicit_step_amplifies():
     model's torque reverses the spin and grows it (the step-frequency instability); the
     treatment's linearly implicit wrench damps it without reversing it."""
     xml, size = body_xml("ellipsoid", 0.001)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     m.opt.timestep = 0.005
     d = mujoco.MjData(m)
     d.qpos[2] = 0.7 * size[-1]  # 0.3 half-heights deep: the medium carries less than the weight
@@ -219,34 +233,36 @@ def test_implicit_step_damps_rocking_that_the_explicit_step_amplifies():
     inertia = (x * m.body_inertia[1]) @ x.T
     om = d.qvel[3:]
 
-    on, off = GranularField(m), GranularField(m, low_speed="off")
+    on = GranularField(m)
+    off, d_off = loaded_at(xml, m, d, low_speed="off")
     user = np.zeros((m.nbody, 6))
-    user[1, 2] = m.body_mass[1] * 9.81 - off.wrench(d)[1, 2]
+    user[1, 2] = m.body_mass[1] * 9.81 - off.wrench(d_off)[1, 2]
     assert user[1, 2] > 0.0
 
-    def spin_after(fld: GranularField) -> np.ndarray:
-        tau = fld.wrench(d, user_xfrc=user)[1, 3:] - np.cross(om, inertia @ om)
+    def spin_after(fld: GranularField, data: mujoco.MjData) -> np.ndarray:
+        tau = fld.wrench(data, user_xfrc=user)[1, 3:] - np.cross(om, inertia @ om)
         return om + m.opt.timestep * np.linalg.solve(inertia, tau)
 
-    explicit, implicit = spin_after(off), spin_after(on)
-    assert on.last_decision[0] == lowspeed.IMPLICIT
+    explicit, implicit = spin_after(off, d_off), spin_after(on, d)
+    assert on.decision_of(d)[0] == lowspeed.IMPLICIT
     assert explicit[0] < -om[0]  # reversed and amplified
     assert 0.0 <= implicit[0] < om[0]  # damped, same sense
     # Along the motion the implicit wrench is the pure one (J xi = 0: degree-0 homogeneity).
-    np.testing.assert_allclose(on.wrench(d, user_xfrc=user)[1, 2], off.wrench(d)[1, 2], rtol=0.05)
+    np.testing.assert_allclose(
+        on.wrench(d, user_xfrc=user)[1, 2], off.wrench(d_off)[1, 2], rtol=0.05
+    )
 
 
 def test_without_treatment_the_same_body_does_not_settle():
     """The criterion can fail: the pure model chatters (guards against a vacuous settle test)."""
     xml, _ = body_xml("sphere", 0.1)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml, low_speed="off")
     m.opt.timestep = 0.002
     d = mujoco.MjData(m)
     v = []
-    with GranularField(m, low_speed="off").installed():
-        for _ in range(1000):
-            mujoco.mj_step(m, d)
-            v.append(np.linalg.norm(d.qvel))
+    for _ in range(1000):
+        mujoco.mj_step(m, d)
+        v.append(np.linalg.norm(d.qvel))
     assert max(v[-200:]) > 100 * SPEED_M_S
 
 
@@ -271,23 +287,22 @@ def test_thrown_spinning_body_never_gains_energy(integrator, reach, qvel):
     was limited to forces doing no work over the step, reaches 4 and 8 gained energy here
     (up to 1e4 x the tolerance, every integrator)."""
     xml, _ = body_xml("ellipsoid", 0.05, z=0.0)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml, stick_reach=reach)
     m.opt.timestep, m.opt.integrator = 0.001, INTEGRATORS[integrator]
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     d = mujoco.MjData(m)
     d.qvel[:] = qvel
-    fld = GranularField(m, stick_reach=reach)
-    with fld.installed():
-        mujoco.mj_forward(m, d)
-        e0 = energy(m, d)
-        worst = -np.inf
-        for _ in range(1500):
-            mujoco.mj_step(m, d)
-            e1 = energy(m, d)
-            worst = max(worst, (e1 - e0) / (E_ABS + E_REL * abs(e0)))
-            e0 = e1
+    fld = GranularField(m)
+    mujoco.mj_forward(m, d)
+    e0 = energy(m, d)
+    worst = -np.inf
+    for _ in range(1500):
+        mujoco.mj_step(m, d)
+        e1 = energy(m, d)
+        worst = max(worst, (e1 - e0) / (E_ABS + E_REL * abs(e0)))
+        e0 = e1
     assert worst <= 1.0
-    assert fld.stats["stuck"] > 0 and np.linalg.norm(d.qvel) <= SPEED_M_S
+    assert fld.stats_of(d)["stuck"] > 0 and np.linalg.norm(d.qvel) <= SPEED_M_S
 
 
 @pytest.mark.parametrize("integrator", list(INTEGRATORS))
@@ -300,22 +315,21 @@ def test_body_rising_slowly_in_the_medium_gains_no_energy(integrator, rise):
     lowering map); it now sticks only as far as that adds no energy. Euler's stick does not
     move the body."""
     xml, size = body_xml("sphere", 0.05)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     m.opt.timestep, m.opt.integrator = 0.005, INTEGRATORS[integrator]
     d = mujoco.MjData(m)
     fld = GranularField(m)
     d_qs = _quasi_static_depth(fld, size, m.body_mass[1] * G)
     d.qpos[2] = size[-1] - d_qs
     d.qvel[2] = rise * G * m.opt.timestep
-    with fld.installed():
-        mujoco.mj_forward(m, d)
-        e0 = energy(m, d)
-        for _ in range(3):
-            mujoco.mj_step(m, d)
-            e1 = energy(m, d)
-            assert e1 - e0 <= E_ABS + E_REL * abs(e0), (e1 - e0, fld.last_decision[0])
-            e0 = e1
-    assert fld.stats["stuck"] > 0
+    mujoco.mj_forward(m, d)
+    e0 = energy(m, d)
+    for _ in range(3):
+        mujoco.mj_step(m, d)
+        e1 = energy(m, d)
+        assert e1 - e0 <= E_ABS + E_REL * abs(e0), (e1 - e0, fld.decision_of(d)[0])
+        e0 = e1
+    assert fld.stats_of(d)["stuck"] > 0
 
 
 def _coulomb_like(c):
@@ -467,30 +481,31 @@ def _fast_state(m, d, speed):
 @pytest.mark.parametrize("speed", [0.2, 3.0, 100.0])
 def test_moving_body_feels_exactly_the_pure_model(speed):
     xml, _ = body_xml("ellipsoid", 0.05)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     d = mujoco.MjData(m)
     _fast_state(m, d, speed)
-    on, off = GranularField(m), GranularField(m, low_speed="off")
-    w_on, w_off = on.wrench(d), off.wrench(d)
-    assert on.last_decision[0] == lowspeed.PURE
+    on = GranularField(m)
+    off, d_off = loaded_at(xml, m, d, low_speed="off")
+    w_on, w_off = on.wrench(d), off.wrench(d_off)
+    assert on.decision_of(d)[0] == lowspeed.PURE
     np.testing.assert_array_equal(w_on, w_off)  # bit for bit, far inside the 0.1 % asked
-    with on.installed():  # the native pass too
-        mujoco.mj_forward(m, d)
-        np.testing.assert_array_equal(on.last_wrench, w_off)
+    mujoco.mj_forward(m, d)  # the pass inside MuJoCo's forward too
+    np.testing.assert_array_equal(on.wrench_of(d), w_off)
 
 
 def test_slow_body_is_treated_and_off_switch_restores_the_pure_model():
     xml, _ = body_xml("sphere", 0.05)
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     d = mujoco.MjData(m)
     d.qpos[2] -= 0.01  # submerged, at rest
     mujoco.mj_forward(m, d)
-    on, off = GranularField(m), GranularField(m, low_speed="off")
+    on = GranularField(m)
+    off, d_off = loaded_at(xml, m, d, low_speed="off")
     w_on = on.wrench(d)
-    assert on.last_decision[0] == lowspeed.STICK
+    assert on.decision_of(d)[0] == lowspeed.STICK
     # Held at rest: exactly the weight, no torque (the pure model at zero velocity gives 0).
     np.testing.assert_allclose(w_on[1], [0, 0, m.body_mass[1] * 9.81, 0, 0, 0], atol=1e-12)
-    np.testing.assert_array_equal(off.wrench(d)[1], 0.0)
+    np.testing.assert_array_equal(off.wrench(d_off)[1], 0.0)
 
 
 def test_treatment_settings_from_mjcf_and_python():
@@ -500,17 +515,23 @@ def test_treatment_settings_from_mjcf_and_python():
         custom='<text name="mjrft:low_speed" data="off"/>'
         '<numeric name="mjrft:stick_reach" data="2.5"/>',
     )
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml)
     assert GranularField(m).low_speed == lowspeed.LowSpeed("off", 2.5)
-    assert GranularField(m, low_speed="stick").low_speed == lowspeed.LowSpeed("stick", 2.5)
-    assert GranularField(m, stick_reach=1.0).low_speed.reach == 1.0
+    stick = mjrft.load_model(xml, low_speed="stick")
+    assert GranularField(stick).low_speed == lowspeed.LowSpeed("stick", 2.5)
+    assert GranularField(mjrft.load_model(xml, stick_reach=1.0)).low_speed.reach == 1.0
+    # Options given to GranularField only check the model: those it was loaded with pass,
+    # others are refused (the engine runs the model's own tables).
+    assert GranularField(stick, low_speed="stick").low_speed.mode == "stick"
+    with pytest.raises(SceneError, match="differ from those the options given"):
+        GranularField(m, low_speed="stick")
     with pytest.raises(SceneError, match="low_speed = 'sticky'.*stick, free, off"):
-        GranularField(m, low_speed="sticky")
+        mjrft.load_model(xml, low_speed="sticky")
     with pytest.raises(SceneError, match="reach = -1.*\\(0, 1000\\]"):
-        GranularField(m, stick_reach=-1)
+        mjrft.load_model(xml, stick_reach=-1)
     bad, _ = body_xml("sphere", 0.05, custom='<text name="mjrft:low_speed" data="on"/>')
     with pytest.raises(SceneError, match="mjrft:low_speed'> = 'on'"):
-        GranularField(mujoco.MjModel.from_xml_string(bad))
+        mjrft.load_model(bad)
 
 
 def test_only_free_rigid_bodies_are_treated():
@@ -524,7 +545,7 @@ def test_only_free_rigid_bodies_are_treated():
       <body name="parent" pos="1 0 0"><freejoint/><geom size="0.01"/>
         <body name="child"><joint type="hinge"/><geom name="c" size="0.01"/></body></body>
     </worldbody></mujoco>"""
-    fld = GranularField(mujoco.MjModel.from_xml_string(xml))
+    fld = GranularField(mjrft.load_model(xml))
     assert fld.stick_eligible.tolist() == [True, False, False]
 
 
@@ -532,14 +553,15 @@ def test_only_free_rigid_bodies_are_treated():
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])  # Euler's and RK4's energy guards
 @pytest.mark.parametrize("reach", [1.0, lowspeed.DEFAULT_REACH])
 def test_compiled_treatment_equals_the_reference(reach, integrator):
-    """Random states around rest and at speed, with user forces: the compiled pass (explicit and
-    installed) against the plain statement of the treatment (field_reference.treated_wrench),
-    decisions and the modes RK4's later stages follow included."""
+    """Random states around rest and at speed, with user forces: the engine's pass (explicit,
+    and inside mj_forward) against the plain statement of the treatment
+    (field_reference.treated_wrench), decisions and the modes RK4's later stages follow
+    included."""
     xml, size = body_xml("ellipsoid", 0.05, custom="")
-    m = mujoco.MjModel.from_xml_string(xml)
+    m = mjrft.load_model(xml, stick_reach=reach)
     m.opt.integrator = INTEGRATORS[integrator]
     d = mujoco.MjData(m)
-    fld = GranularField(m, stick_reach=reach)
+    fld = GranularField(m)
     rng = np.random.default_rng(7)
     seen, holds = set(), set()
     for _ in range(60):
@@ -551,11 +573,11 @@ def test_compiled_treatment_equals_the_reference(reach, integrator):
         user[1] = rng.normal(size=6) * [0.3, 0.3, 0.3, 1e-3, 1e-3, 1e-3]
         mujoco.mj_forward(m, d)
         explicit = fld.wrench(d, user_xfrc=user)[1]
-        dec = int(fld.last_decision[0])
-        with fld.installed():  # the same pass, with the user part taken from xfrc_applied
-            d.xfrc_applied[:] = user
-            mujoco.mj_forward(m, d)
-            np.testing.assert_array_equal(d.xfrc_applied[1], user[1] + explicit)
+        dec = int(fld.decision_of(d)[0])
+        # The pass inside MuJoCo's forward, with the user part taken from xfrc_applied.
+        d.xfrc_applied[:] = user
+        mujoco.mj_forward(m, d)
+        np.testing.assert_array_equal(d.xfrc_applied[1], user[1] + explicit)
         w, decisions, modes = ref.treated_wrench(fld, d, user)
         assert decisions[0] == dec
         np.testing.assert_allclose(explicit, w[1], rtol=REF_RTOL, atol=REF_RTOL * np.abs(w).max())
@@ -593,16 +615,15 @@ def test_extremes_stay_finite_and_raise_nothing(speed, integrator, low_speed):
     """Element areas 1e-12 (tiny sphere) to ~1 m^2 (huge box 10 m deep), a plate lying exactly on
     the surface, a vertical plate, exactly vertical velocities, and (at speed) bodies leaving
     and re-entering the medium."""
-    m = mujoco.MjModel.from_xml_string(EXTREME.format(dt=0.002))
+    m = mjrft.load_model(EXTREME.format(dt=0.002), low_speed=low_speed)
     m.opt.integrator = INTEGRATORS[integrator]
     d = mujoco.MjData(m)
-    fld = GranularField(m, low_speed=low_speed)
+    fld = GranularField(m)
     areas = np.concatenate([be.areas for be in fld.bodies])
     assert areas.min() < 1e-11 and areas.max() > 0.9
     for j in range(4):
         d.qvel[6 * j + 2] = -speed  # exactly vertical
     d.qvel[6 * 1 + 2] = speed  # the flat plate moves up and out
-    with fld.installed():
-        for _ in range(100):
-            mujoco.mj_step(m, d)
-            assert np.all(np.isfinite(d.xfrc_applied)) and np.all(np.isfinite(d.qvel))
+    for _ in range(100):
+        mujoco.mj_step(m, d)
+        assert np.all(np.isfinite(d.xfrc_applied)) and np.all(np.isfinite(d.qvel))

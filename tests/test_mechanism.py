@@ -2,17 +2,21 @@
 sand stays put, moving rigs keep the pure model, a passive chain settles without gaining energy.
 
 Reduced sizes of benchmarks/standing.py (the full table: docs/stability.md, "Mechanisms"). The
-compiled pass is checked against its plain statement in tests/test_paths.py (a body on a slide).
+engine's pass (the mjrft.granular plugin) is checked against its plain statement
+(tests/field_reference.py) here on the standing hexapod, and in tests/test_paths.py (a body on a
+slide).
 """
 
 from __future__ import annotations
 
+import ctypes
 from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
 
+import mjrft
 from mjrft.field import GranularField, lowspeed
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
@@ -25,13 +29,13 @@ RIG_FORCE_RTOL, MOVING_AFTER = 1e-3, 100
 
 
 def standing_hexapod(integrator: int, timestep: float, low_speed: str):
-    model = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
+    model = mjrft.load_model(MODELS / "hexapod_sand.xml", low_speed=low_speed)
     model.opt.integrator, model.opt.timestep = integrator, timestep
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     data.ctrl[:] = 0.0  # gait stopped: each hip servo holds its angle
     data.qvel[:] = 0.0
-    return model, data, GranularField(model, low_speed=low_speed)
+    return model, data, GranularField(model)
 
 
 def stand(integrator: int, timestep: float, low_speed: str, seconds: float = 3.0):
@@ -40,12 +44,11 @@ def stand(integrator: int, timestep: float, low_speed: str, seconds: float = 3.0
     weight = float(model.body_subtreemass[1]) * -model.opt.gravity[2]
     n, last = round(seconds / timestep), round(1.0 / timestep)
     pos, fz = [], []
-    with fld.installed():
-        for i in range(n):
-            mujoco.mj_step(model, data)
-            if i >= n - last:
-                pos.append(data.xpos[1].copy())
-                fz.append(fld.wrench_of(data)[fld.body_ids, 2].sum())
+    for i in range(n):
+        mujoco.mj_step(model, data)
+        if i >= n - last:
+            pos.append(data.xpos[1].copy())
+            fz.append(fld.wrench_of(data)[fld.body_ids, 2].sum())
     return np.array(pos), np.array(fz), weight
 
 
@@ -79,16 +82,15 @@ def test_the_legs_are_treated_and_the_free_body_rule_is_not_used_for_them():
 def test_a_moving_rig_feels_the_pure_model(rig):
     forces = {}
     for mode in ("free", "stick"):
-        model = mujoco.MjModel.from_xml_path(str(MODELS / f"{rig}.xml"))
+        model = mjrft.load_model(MODELS / f"{rig}.xml", n_triangles=400, low_speed=mode)
         data = mujoco.MjData(model)
         if model.nkey:
             mujoco.mj_resetDataKeyframe(model, data, 0)
-        fld = GranularField(model, n_triangles=400, low_speed=mode)
+        fld = GranularField(model)
         out = []
-        with fld.installed():
-            for _ in range(3000):
-                mujoco.mj_step(model, data)
-                out.append(fld.wrench_of(data)[fld.body_ids[0], :3].copy())
+        for _ in range(3000):
+            mujoco.mj_step(model, data)
+            out.append(fld.wrench_of(data)[fld.body_ids[0], :3].copy())
         forces[mode] = np.array(out)
     moving = slice(MOVING_AFTER, None)
     peak = np.abs(forces["free"][moving]).max()
@@ -126,20 +128,19 @@ GAIN_J, GAIN_REL = 1e-9, 1e-6
 
 @pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "RK4"])
 def test_a_passive_chain_settles_and_gains_no_energy(integrator):
-    model = mujoco.MjModel.from_xml_string(CHAIN.format(dt=1e-3, integrator=integrator))
+    model = mjrft.load_model(CHAIN.format(dt=1e-3, integrator=integrator))
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     data = mujoco.MjData(model)
     data.qvel[:6] = [0.02, 0.0, -0.2, 0.0, 1.0, 0.0]  # thrown in, tumbling
     fld = GranularField(model)
     assert fld.mechanism_eligible.all()
     energy, held = [], 0
-    with fld.installed():
-        for _ in range(1500):
-            mujoco.mj_step(model, data)
-            mujoco.mj_energyPos(model, data)
-            mujoco.mj_energyVel(model, data)
-            energy.append(data.energy.sum())
-            held += int(np.any(fld.last_decision == lowspeed.STICK))
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+        mujoco.mj_energyPos(model, data)
+        mujoco.mj_energyVel(model, data)
+        energy.append(data.energy.sum())
+        held += int(np.any(fld.decision_of(data) == lowspeed.STICK))
     energy = np.array(energy)
     scale = np.abs(energy).max()
     assert np.diff(energy).max() <= GAIN_J + GAIN_REL * scale
@@ -147,25 +148,45 @@ def test_a_passive_chain_settles_and_gains_no_energy(integrator):
     assert np.abs(data.qvel).max() < 1e-9  # and stays at rest
 
 
+def engine_tables(fld: GranularField):
+    """A ctypes ``Tables`` (engine/fields.h, through tests/engine_bridge.py) over the field's
+    engine tables (``fld._tables``, the arrays the model carries), for the engine's C entry
+    points of single stages."""
+    import engine_bridge as bridge
+
+    tables, t = fld._tables, bridge.Tables()
+    for name in bridge.table_sizes():
+        setattr(t, name, int(tables[name]))
+    for _, name in bridge.table_scalars():
+        setattr(t, name, tables[name])
+    for _, name in bridge.table_arrays():
+        setattr(t, name, tables[name].ctypes.data)
+    return t
+
+
 @pytest.mark.parametrize("name", ["hexapod_sand", "plate_rig", "ellipsoid_pitch"])
 def test_the_predicted_actuator_forces_are_mujocos(name):
-    """The mechanism step predicts this state's servo forces by MuJoCo's affine rule; after
+    """The mechanism step predicts this state's servo forces by MuJoCo's affine rule
+    (mechanism::ActuatorForces, the engine's C entry mjrft_test_actuator_forces); after
     mj_forward they must equal MuJoCo's actuator_force (same formula, same inputs)."""
-    from mjrft.field import mechanism
-
-    model = mujoco.MjModel.from_xml_path(str(MODELS / f"{name}.xml"))
+    model = mjrft.load_model(MODELS / f"{name}.xml")
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     fld = GranularField(model)
     rng = np.random.default_rng(2)
-    with fld.installed():
-        for _ in range(200):
-            data.ctrl[:] += 0.01 * rng.normal(size=model.nu)
-            mujoco.mj_step(model, data)
-        mujoco.mj_forward(model, data)
-        st = fld._state(data)
-        out = np.empty(model.nu)
-        mechanism.actuator_forces(fld._tables.address, st.address, out)
+    for _ in range(200):
+        data.ctrl[:] += 0.01 * rng.normal(size=model.nu)
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    lib = mjrft.field.plugin.library()
+    lib.mjrft_test_actuator_forces.argtypes = [ctypes.c_void_p] * 4
+    lib.mjrft_test_actuator_forces.restype = None
+    tables = engine_tables(fld)
+    out = np.empty(model.nu)
+    lib.mjrft_test_actuator_forces(
+        ctypes.c_void_p(model._address), ctypes.c_void_p(data._address),
+        ctypes.addressof(tables), out.ctypes.data,
+    )  # fmt: skip
     np.testing.assert_allclose(out, data.actuator_force, rtol=1e-12, atol=1e-12)
 
 
@@ -174,20 +195,18 @@ def test_a_rig_stopped_mid_stroke_holds_still_with_its_load_cell_constant():
     pure model its load cell chatters by about 13 N step to step; held, it reads a constant."""
     readings = {}
     for mode in ("free", "stick"):
-        model = mujoco.MjModel.from_xml_path(str(MODELS / "plate_rig.xml"))
+        model = mjrft.load_model(MODELS / "plate_rig.xml", n_triangles=400, low_speed=mode)
         data = mujoco.MjData(model)
         mujoco.mj_resetDataKeyframe(model, data, 0)
-        fld = GranularField(model, n_triangles=400, low_speed=mode)
         sensor = model.sensor("load_cell_force")
         out, z = [], []
-        with fld.installed():
-            for i in range(4000):
-                if i == 3000:
-                    data.ctrl[:] = 0.0  # stop the carriage
-                mujoco.mj_step(model, data)
-                if i >= 3500:
-                    out.append(data.sensordata[sensor.adr[0] : sensor.adr[0] + 3].copy())
-                    z.append(data.qpos[2])
+        for i in range(4000):
+            if i == 3000:
+                data.ctrl[:] = 0.0  # stop the carriage
+            mujoco.mj_step(model, data)
+            if i >= 3500:
+                out.append(data.sensordata[sensor.adr[0] : sensor.adr[0] + 3].copy())
+                z.append(data.qpos[2])
         readings[mode] = (np.array(out), np.array(z))
     chatter = np.abs(np.diff(readings["free"][0], axis=0)).max()
     held, z = readings["stick"]
@@ -196,33 +215,42 @@ def test_a_rig_stopped_mid_stroke_holds_still_with_its_load_cell_constant():
     assert np.ptp(z) < 1e-9 and np.abs(held[-1, 2]) > 1.0  # still, and loaded by the medium
 
 
-def test_the_compiled_pass_follows_the_plain_reference_on_the_standing_hexapod():
+def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
     """Six legs and the belly held by the medium, their hip servos nudged (within what the holds
-    supply, so that no body slips): from one settled
-    state, the compiled pass against field_reference.mechanism_wrenches (MuJoCo's mj_fullM and
-    mj_jacBodyCom, dense solves, the actuator rule written plainly), states and decisions.
+    supply, so that no body slips): from one settled state, the engine's pass (the plugin, in
+    mj_step) against field_reference.mechanism_wrenches (MuJoCo's mj_fullM and mj_jacBodyCom,
+    dense solves, the actuator rule written plainly) as MuJoCo's passive callback on the same
+    model compiled without the plugin, states and decisions.
 
     From the settled state on, not from the fall into the sand: a slipping body's wrench is the
     medium's force at a direction computed in two orders of operations, and one triangle on the
     leading/trailing boundary can flip between them (a 3 mN jump on a 1 N leg)."""
-    import copy
-
     import field_reference as ref
 
     model, data, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
-    with fld.installed():
-        for _ in range(1500):
-            mujoco.mj_step(model, data)
-    twin = copy.copy(data)
-    a = fld._state(data).arrays
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+    # The twin: the same state on the model without the plugin. Besides the state, the last
+    # step's qacc and actuator_force, which both treatments read at the next step's first pass.
+    plain = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
+    plain.opt.integrator, plain.opt.timestep = model.opt.integrator, model.opt.timestep
+    twin = mujoco.MjData(plain)
+    spec = int(mujoco.mjtState.mjSTATE_INTEGRATION) & ~int(mujoco.mjtState.mjSTATE_PLUGIN)
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    mujoco.mj_setState(plain, twin, state, spec)
+    twin.qacc[:], twin.actuator_force[:] = data.qacc, data.actuator_force
+    rows, nk = fld.body_ids, len(fld.body_ids)
+    held = fld.state_array(data, "mech_held").astype(bool)
+    prev = fld.state_array(data, "mech_prev").reshape(nk, 6)
+    last_pass = float(fld.state_array(data, "mech_time")[0])
     reference = ref.ReferenceField(fld)
-    rows = fld.body_ids
     reference.state[twin._address] = {
-        "user": np.zeros((len(rows), 6)), "written": np.array(data.xfrc_applied[rows]),
-        "record": [0.0, 0.0], "modes": {}, "mech_time": float(a.mech_time[0]),
-        "mech_tau": a.mech_tau.copy(),
-        "mech_held": {k: True for k in range(len(rows)) if a.mech_held[k]},
-        "mech_prev": {k: a.mech_prev[k].copy() for k in range(len(rows)) if a.mech_held[k]},
+        "user": np.zeros((nk, 6)), "written": np.array(data.xfrc_applied[rows]),
+        "record": [0.0, 0.0], "modes": {}, "mech_time": last_pass,
+        "mech_tau": fld.state_array(data, "mech_tau").copy(),
+        "mech_held": {k: True for k in range(nk) if held[k]},
+        "mech_prev": {k: prev[k].copy() for k in range(nk) if held[k]},
     }  # fmt: skip
 
     STEPS = 200  # the reference takes ~0.25 s a step here; 140 steps follow the nudge
@@ -232,18 +260,17 @@ def test_the_compiled_pass_follows_the_plain_reference_on_the_standing_hexapod()
             d.act[:] += 1e-4  # every hip's setpoint moves by 0.1 mrad: the holds follow
 
     fast, fast_dec = [], []
-    with fld.installed():
-        for i in range(STEPS):
-            nudged(data, i)
-            mujoco.mj_step(model, data)
-            fast.append(np.concatenate([data.qpos, data.qvel]))
-            fast_dec.append(list(map(int, fld.last_decision)))
+    for i in range(STEPS):
+        nudged(data, i)
+        mujoco.mj_step(model, data)
+        fast.append(np.concatenate([data.qpos, data.qvel]))
+        fast_dec.append(list(map(int, fld.decision_of(data))))
     slow, slow_dec = [], []
     mujoco.set_mjcb_passive(reference.apply)
     try:
         for i in range(STEPS):
             nudged(twin, i)
-            mujoco.mj_step(model, twin)
+            mujoco.mj_step(plain, twin)
             slow.append(np.concatenate([twin.qpos, twin.qvel]))
             slow_dec.append(list(reference.decisions))
     finally:

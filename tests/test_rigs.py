@@ -51,9 +51,9 @@ def test_the_rigs_carry_the_prescribed_demos_bodies():
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
 @pytest.mark.parametrize("path", MODEL_FILES, ids=lambda p: p.stem)
 def test_every_model_runs_one_second_with_the_field(path, integrator):
-    model = simulate.load_model(path)
+    model = simulate.load_model(path, n_triangles=FAST_TRIANGLES)
     simulate.configure(model, None, integrator)
-    fld = GranularField(model, n_triangles=FAST_TRIANGLES)
+    fld = GranularField(model)
     data, rec = simulate.run(model, 1.0, fld=fld, record_every=10)
     assert np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
     arr = rec.array()
@@ -64,30 +64,29 @@ def test_every_model_runs_one_second_with_the_field(path, integrator):
 
 
 def run_recording_states(model, fld, n_steps):
-    """Step with the field installed; record each pre-step state and the wrench it produced."""
+    """Step; record each pre-step state and the wrench the step's pass computed there."""
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     be = fld.bodies[0]
     b = be.body
     out = {k: [] for k in ("pos", "rot", "v", "w", "com", "wrench")}
     vel = np.zeros(6)
-    with fld.installed():
-        for _ in range(n_steps):
-            mujoco.mj_step(model, data)  # Euler: derived quantities stay at the pre-step state
-            mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, vel, 0)
-            out["pos"].append(data.xpos[b].copy())
-            out["rot"].append(data.xmat[b].reshape(3, 3).copy())
-            out["v"].append(vel[3:].copy())
-            out["w"].append(vel[:3].copy())
-            out["com"].append(data.xipos[b].copy())
-            out["wrench"].append(fld.last_wrench[b].copy())
+    for _ in range(n_steps):
+        mujoco.mj_step(model, data)  # Euler: derived quantities stay at the pre-step state
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_XBODY, b, vel, 0)
+        out["pos"].append(data.xpos[b].copy())
+        out["rot"].append(data.xmat[b].reshape(3, 3).copy())
+        out["v"].append(vel[3:].copy())
+        out["w"].append(vel[:3].copy())
+        out["com"].append(data.xipos[b].copy())
+        out["wrench"].append(fld.wrench_of(data)[b].copy())
     return b, {k: np.array(v) for k, v in out.items()}
 
 
 @pytest.mark.parametrize("name", ["ellipsoid_pitch", "root_circumnutation"])
 def test_replaying_the_trajectory_through_the_core_reproduces_the_field(name):
-    model = simulate.load_model(MODELS / f"{name}.xml")
-    fld = GranularField(model, n_triangles=FAST_TRIANGLES)
+    model = simulate.load_model(MODELS / f"{name}.xml", n_triangles=FAST_TRIANGLES)
+    fld = GranularField(model)
     n = 1500 if name == "ellipsoid_pitch" else 300  # the ellipsoid starts with its tip just in
     b, rec = run_recording_states(model, fld, n)
     replay = trajectory_wrenches(
@@ -114,8 +113,8 @@ def load_cell_error(name, duration):
     frame (tests/test_models_kinematics.py), so R f = m a - m g - F_rft for the intruder below
     it; m a is small for these slow rigs and is part of the tolerance.
     """
-    model = simulate.load_model(MODELS / f"{name}.xml")
-    fld = GranularField(model, n_triangles=FAST_TRIANGLES)
+    model = simulate.load_model(MODELS / f"{name}.xml", n_triangles=FAST_TRIANGLES)
+    fld = GranularField(model)
     b = int(fld.body_ids[0])
     s = next(
         i for i in range(model.nsensor) if model.sensor_type[i] == mujoco.mjtSensor.mjSENS_FORCE
@@ -125,12 +124,11 @@ def load_cell_error(name, duration):
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     errs, rfts = [], []
-    with fld.installed():
-        for _ in range(round(duration / model.opt.timestep)):
-            mujoco.mj_step(model, data)  # Euler: sensors, site frames, wrench all pre-step
-            world = data.site_xmat[site].reshape(3, 3) @ data.sensordata[adr : adr + 3]
-            rfts.append(fld.last_wrench[b, :3].copy())
-            errs.append(world - weight + rfts[-1])
+    for _ in range(round(duration / model.opt.timestep)):
+        mujoco.mj_step(model, data)  # Euler: sensors, site frames, wrench all pre-step
+        world = data.site_xmat[site].reshape(3, 3) @ data.sensordata[adr : adr + 3]
+        rfts.append(fld.wrench_of(data)[b, :3].copy())
+        errs.append(world - weight + rfts[-1])
     err, rft = np.array(errs), np.array(rfts)
     peak = np.abs(rft).max()
     return np.sqrt(np.mean(np.sum(err**2, axis=1))) / peak, peak
@@ -147,8 +145,8 @@ def test_load_cell_minus_weight_matches_rft_force(name, duration):
 
 
 def test_linkage_pitches_9_degrees_at_0625_hz_in_the_medium():
-    model = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
-    fld = GranularField(model, n_triangles=FAST_TRIANGLES)
+    model = simulate.load_model(MODELS / "ellipsoid_pitch.xml", n_triangles=FAST_TRIANGLES)
+    fld = GranularField(model)
     _, rec = simulate.run(model, 6.4, fld=fld, record_every=5)
     t, pitch = rec.column("time_s"), rec.column("sensor_pitch")
     rft_z = rec.column(f"{rec.body_names[0]}_rft_force_z_N")

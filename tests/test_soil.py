@@ -1,16 +1,17 @@
 """Ground that deforms and remembers (mjrft.core.soil): excavation, memory, bulldozing,
 relaxation to the angle of repose, volume conservation, and the ground's state travelling with
-the MjData (copies, saved states, resets, batches)."""
+the MjData in its plugin_state (copies, saved states, resets, batches), leaving userdata to the
+user."""
 
 import copy
 
 import mujoco
 import numpy as np
 import pytest
+from mujoco.batch import Batch
 
 import mjrft
 from mjrft.field import GranularField, SceneError
-from mjrft.field.batch import BatchedField, single_step_reference
 
 ZETA = 3.3e5  # glass_beads [N/m^3]; alpha_z(0, pi/2) = 1 for a plate pushed straight down
 CELL = 0.0025  # [m]
@@ -35,21 +36,20 @@ FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 
 BOX = {"shape": "box", "size": "0.025 0.025 0.005"}
 
 
-def load(xml: str, **kw) -> tuple[mujoco.MjModel, GranularField, mujoco.MjData]:
-    m = mjrft.load_model(mujoco.MjSpec.from_string(xml))
-    f = GranularField(m, **kw)
-    return m, f, mujoco.MjData(m)
+def load(xml: str, **options) -> tuple[mujoco.MjModel, GranularField, mujoco.MjData]:
+    """The model (scene options: mjrft.SceneOptions fields), its field and a new MjData."""
+    m = mjrft.load_model(xml, **options)
+    return m, GranularField(m), mujoco.MjData(m)
 
 
 def drive(m, f, d, targets, steps=2, actuator=0):
-    """Installed steps towards each position target; returns (q, wrench z of body 1) rows."""
+    """Steps towards each position target; returns (q, wrench z of body 1) rows."""
     out = []
-    with f.installed():
-        for tgt in targets:
-            d.ctrl[actuator] = tgt
-            for _ in range(steps):
-                mujoco.mj_step(m, d)
-            out.append((d.qpos[0], f.wrench_of(d)[1, 2]))
+    for tgt in targets:
+        d.ctrl[actuator] = tgt
+        for _ in range(steps):
+            mujoco.mj_step(m, d)
+        out.append((d.qpos[0], f.wrench_of(d)[1, 2]))
     return np.array(out)
 
 
@@ -78,9 +78,11 @@ def test_pressing_fresh_ground_feels_the_pristine_force():
     flat surface at the same depth: the pressed column remembers the depth it had."""
     m, f, d = load(FOOT.format(cell=CELL, **BOX))
     drive(m, f, d, np.linspace(0.0, -0.008, 200))
-    flat = GranularField(m, deform_cell=0)
+    m0, flat, d0 = load(FOOT.format(cell=CELL, **BOX), deform_cell=0)  # the pristine surface
+    d0.qpos[:], d0.qvel[:] = d.qpos, d.qvel
     mujoco.mj_forward(m, d)
-    expected = flat.wrench(d)[1, 2]
+    mujoco.mj_forward(m0, d0)
+    expected = flat.wrench(d0)[1, 2]
     assert f.wrench(d)[1, 2] == pytest.approx(expected, rel=FRESH_RTOL)
     assert expected == pytest.approx(ZETA * -d.qpos[0] * 0.05**2, rel=1e-3)  # alpha_z = 1
 
@@ -176,10 +178,9 @@ def test_a_dragged_blade_pushes_a_pile_ahead_and_leaves_a_trench_behind():
     """A blade 1 cm deep dragged 6 cm along +x: the surface ahead of it rises, its path is a
     trench, every relaxed free slope is within the angle of repose, the volume is conserved."""
     m, f, d = load(BLADE)
-    with f.installed():
-        d.ctrl[0] = 0.1  # [m/s]
-        while d.qpos[0] < 0.06:
-            mujoco.mj_step(m, d)
+    d.ctrl[0] = 0.1  # [m/s]
+    while d.qpos[0] < 0.06:
+        mujoco.mj_step(m, d)
     soil = f.soil(d)
     row = np.argmin(np.abs(soil.y))
     x, h = soil.x, soil.height[row]
@@ -203,7 +204,7 @@ def test_a_recording_shows_the_ground_as_it_deforms(tmp_path):
     m, f, d = load(BLADE)
     path = tmp_path / "blade.rrd"
     shown = {}
-    with viz.Recorder(m, f, path, every=1) as recorder, f.installed():
+    with viz.Recorder(m, f, path, every=1) as recorder:
         d.ctrl[0] = 0.1  # [m/s]
         mujoco.mj_forward(m, d)
         for step in range(3 * viz.GROUND_EVERY_FRAMES):
@@ -242,7 +243,8 @@ def test_the_viewer_draws_the_ground_in_its_hfield():
     from mjrft.app import mujoco_viewer
 
     ramp = np.tile(np.linspace(0.0, 1.0, 25), (25, 1))  # MuJoCo keeps [0, 1] data as given
-    m, f, d = load(HFIELD_FOOT.format(elevation=" ".join(f"{v:.6f}" for v in ramp.ravel())))
+    elevation = " ".join(f"{v:.6f}" for v in ramp.ravel())
+    m, f, d = load(HFIELD_FOOT.format(elevation=elevation))
     hfield = mujoco_viewer.ground_hfield(m, f)
     assert hfield == m.hfield("sand").id
     initial = m.hfield_data.reshape(25, 25).copy()
@@ -257,12 +259,14 @@ def test_the_viewer_draws_the_ground_in_its_hfield():
     assert samples[12, 12] < initial[12, 12] - 0.2  # 4 mm of the 5 mm cut, in units of 2 cm
     outside = ~np.outer(inside, inside)
     assert np.array_equal(samples[outside], initial[outside])
-    assert mujoco_viewer.ground_hfield(m, GranularField(m, deform_cell=0.0)) == -1
+    rigid = mjrft.load_model(HFIELD_FOOT.format(elevation=elevation), deform_cell=0.0)
+    assert mujoco_viewer.ground_hfield(rigid, GranularField(rigid)) == -1
 
 
 def test_the_ground_travels_with_the_mjdata_state():
-    """Copies carry their own ground, mj_getState/mj_setState (mjSTATE_INTEGRATION) restore
-    it, mj_resetData and Soil.reset restore the initial surface, set_height writes it."""
+    """The ground lives in plugin_state: copies carry their own, mj_getState/mj_setState
+    (mjSTATE_INTEGRATION, which holds mjSTATE_PLUGIN) restore it, mj_resetData and Soil.reset
+    restore the initial surface, set_height writes it."""
     m, f, d = load(FOOT.format(cell=CELL, **BOX))
     drive(m, f, d, np.linspace(0.0, -0.004, 60))
     pressed = f.soil(d).height
@@ -287,23 +291,43 @@ def test_the_ground_travels_with_the_mjdata_state():
     np.testing.assert_array_equal(f.soil(twin).height, s.initial)
 
 
-def test_batch_copies_each_have_their_own_ground():
-    """Two batch copies pressed to different depths carry the grounds that the explicit path
-    gives single MjData, bit for bit."""
+@pytest.mark.parametrize(
+    "persistent",
+    [
+        True,
+        pytest.param(
+            False,
+            marks=pytest.mark.xfail(
+                strict=True,
+                raises=AssertionError,
+                reason="the mechanism treatment reads the previous step's qacc and "
+                "actuator_force from the MjData (not part of its mjSTATE_INTEGRATION state); "
+                "a batch that is not persistent shares one MjData among its copies, so a copy "
+                "reads another copy's",
+            ),
+        ),
+    ],
+)
+def test_batch_copies_each_have_their_own_ground(persistent):
+    """Two copies on mujoco.batch.Batch pressed to different depths carry, bit for bit, the
+    grounds (and the whole engine state) of single MjData stepped by mj_step."""
     m, f, _ = load(FOOT.format(cell=CELL, **BOX))
-    batch = BatchedField(f, nsim=2, nthread=1)
+    batch = Batch(m, nsim=2, nthread=1, persistent=persistent)
     singles = [mujoco.MjData(m) for _ in range(2)]
     targets = (-0.004, -0.007)
+    ctrl = batch.bind("ctrl")
     for step in range(120):
         for i, tgt in enumerate(targets):
-            batch.batch.ctrl[i] = tgt * min(1.0, step / 60)
+            ctrl[i] = tgt * min(1.0, step / 60)
             singles[i].ctrl[0] = tgt * min(1.0, step / 60)
-            single_step_reference(f, singles[i])
+            mujoco.mj_step(m, singles[i])
         batch.step()
-    udata = batch.batch.bind("userdata")
+    state = batch.bind("plugin_state")
+    copies = [batch.get_data(i) for i in range(2)]
     for i, single in enumerate(singles):
-        np.testing.assert_array_equal(udata[i], single.userdata)
-    assert not np.array_equal(udata[0], udata[1])
+        np.testing.assert_array_equal(state[i], single.plugin_state)
+        np.testing.assert_array_equal(f.soil(copies[i]).height, f.soil(single).height)
+    assert f.soil(copies[1]).height.min() < f.soil(copies[0]).height.min() - 0.002
 
 
 BAD = """<mujoco><custom><text name="mjrft:material" data="glass_beads"/>{custom}
@@ -331,14 +355,31 @@ def test_bad_deformation_settings_are_named(custom, message):
         load(BAD.format(custom=custom))
 
 
-def test_a_model_without_room_in_userdata_is_told_the_size():
-    custom = REGION + '<numeric name="mjrft:deform_cell" data="0.01"/>'
-    m = mujoco.MjModel.from_xml_string(BAD.format(custom=custom))
-    with pytest.raises(SceneError, match=r'nuserdata="1334"'):
-        GranularField(m)
+def test_the_users_userdata_is_left_alone():
+    """A model declaring its own userdata keeps it: the ground lives in plugin_state, so the
+    user's values stay as written while the ground deforms, the ground does not read them (an
+    MjData with other userdata presses the same ground, bit for bit), and mj_resetData clears
+    both, each its own."""
+    xml = FOOT.format(cell=CELL, **BOX).replace("<mujoco>", '<mujoco><size nuserdata="10"/>', 1)
+    m, f, d = load(xml)
+    assert m.nuserdata == 10
+    mine = np.linspace(-1e3, 1e3, 10)
+    d.userdata[:] = mine
+    blank = mujoco.MjData(m)
+    targets = np.linspace(0.0, -0.004, 60)
+    drive(m, f, d, targets)
+    drive(m, f, blank, targets)
+    np.testing.assert_array_equal(d.userdata, mine)
+    np.testing.assert_array_equal(blank.userdata, 0.0)
+    assert f.soil(d).height.min() < -0.003
+    np.testing.assert_array_equal(f.soil(d).height, f.soil(blank).height)
+    np.testing.assert_array_equal(d.plugin_state, blank.plugin_state)
+    mujoco.mj_resetData(m, d)
+    np.testing.assert_array_equal(d.userdata, 0.0)
+    np.testing.assert_array_equal(f.soil(d).height, f.soil(d).initial)
 
 
 def test_an_intruder_below_the_grounds_bottom_is_named():
     m, f, d = load(FOOT.format(cell=CELL, **BOX).replace("-0.06 -0.06 -0.1", "-0.06 -0.06 -0.003"))
-    with pytest.raises(ValueError, match="'foot' reaches below the bottom"):
+    with pytest.raises(mujoco.FatalError, match="'foot' reaches below the bottom"):
         drive(m, f, d, np.linspace(0.0, -0.01, 100))
