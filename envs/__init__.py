@@ -6,11 +6,11 @@
     env = envs.load("hexapod_sand", seed=0)          # a dm_control.rl.control.Environment
     ts = env.reset()
     ts = env.step([1.0, 3.14159])                     # 1 Hz alternating tripod
-    env.close()                                       # uninstalls the field
+    env.close()                                       # frees the MuJoCo data
 
 ``envs.NAMES`` lists the environments; each module's docstring gives its actions, observations
-and reward (SI units). The granular RFT field acts inside every physics substep (the physics is
-an ``envs.physics.GranularPhysics``: the field stays installed for its lifetime).
+and reward (SI units). The granular RFT field acts inside every physics substep: the model of
+each environment's physics (an ``envs.physics.GranularPhysics``) carries the engine.
 ``envs.gym_wrapper.GymnasiumEnv`` wraps any of them as a ``gymnasium.Env`` (optional
 dependency); with gymnasium installed, importing this package registers them as
 ``mjrft/<name>-v0``: ``gymnasium.make("mjrft/hexapod_sand-v0")`` after ``import mjrft.envs``, or

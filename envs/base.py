@@ -42,7 +42,7 @@ def resolve_random(random: Any = None, seed: int | None = None) -> np.random.Ran
 
 
 class GranularEnvironment(control.Environment):
-    """``control.Environment`` whose ``close()`` uninstalls the field and frees the physics.
+    """``control.Environment`` whose ``close()`` frees the physics' MuJoCo data.
 
     Substeps: ``physics.step(n_sub_steps)`` per control step; the field acts in every one.
     """
@@ -53,7 +53,7 @@ class GranularEnvironment(control.Environment):
         return self._n_sub_steps
 
     def close(self) -> None:
-        """Release the granular field (and MuJoCo data); the environment is unusable after."""
+        """Free the physics' MuJoCo data; the environment is unusable after."""
         if hasattr(self._physics, "_data"):
             self._physics.free()
         self._closed = True

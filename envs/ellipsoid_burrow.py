@@ -40,7 +40,7 @@ import mujoco
 import numpy as np
 from dm_env import specs
 
-from mjrft import Material
+from mjrft import Material, SceneOptions, load_model
 
 from .base import DepthPerWorkTask, make_environment, models_dir, resolve_random
 from .physics import GranularPhysics
@@ -56,8 +56,9 @@ START_RAISE = 0.005  # m: the start pose is raised by U(0, START_RAISE)
 COUNTERWEIGHTED = ("carriage", "crank", "coupler", "pitch_body")
 
 
-def build_model(max_thrust: float = DEFAULT_MAX_THRUST) -> mujoco.MjModel:
-    """The ellipsoid rig with a thrust-driven, counterweighted carriage (see module docstring)."""
+def build_spec(max_thrust: float = DEFAULT_MAX_THRUST) -> mujoco.MjSpec:
+    """The ellipsoid rig with a thrust-driven, counterweighted carriage (see module docstring),
+    as an MjSpec without the engine (``build_model`` adds it)."""
     spec = mujoco.MjSpec.from_file(str(models_dir() / "ellipsoid_pitch.xml"))
     crank = spec.actuator("crank")
     crank.ctrlrange = [0.0, MAX_CRANK_SPEED]
@@ -76,7 +77,15 @@ def build_model(max_thrust: float = DEFAULT_MAX_THRUST) -> mujoco.MjModel:
     key.qvel = [0.0] * 4
     key.ctrl = [0.0, 0.0]
     key.act = [0.0]
-    return spec.compile()
+    return spec
+
+
+def build_model(
+    max_thrust: float = DEFAULT_MAX_THRUST, options: SceneOptions | None = None
+) -> mujoco.MjModel:
+    """The rig of ``build_spec`` compiled with the granular engine (``mjrft.load_model``);
+    options: SceneOptions on top of the MJCF's (material, n_triangles, ...)."""
+    return load_model(build_spec(max_thrust), options)
 
 
 class EllipsoidBurrow(DepthPerWorkTask):
@@ -131,8 +140,7 @@ def make(
       material: medium override (preset name or Material; default the rig's glass beads).
       n_triangles: RFT triangles on the ellipsoid (default the rig's 4000).
     """
-    physics = GranularPhysics.from_mjmodel(
-        build_model(max_thrust), material=material, n_triangles=n_triangles
-    )
+    options = SceneOptions(material=material, n_triangles=n_triangles)
+    physics = GranularPhysics.from_mjmodel(build_model(max_thrust, options))
     task = EllipsoidBurrow(random=resolve_random(random, seed))
     return make_environment(physics, task, time_limit=time_limit, control_timestep=control_timestep)

@@ -92,5 +92,5 @@ class GymnasiumEnv(gymnasium.Env):
         return None
 
     def close(self) -> None:
-        """Close the wrapped environment (uninstalls its granular field)."""
+        """Close the wrapped environment (frees its MuJoCo data)."""
         self._env.close()

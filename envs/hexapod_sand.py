@@ -43,7 +43,7 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
-from mjrft import Material, load_model
+from mjrft import Material, SceneOptions, load_model
 
 from .base import (
     forward_kinematics,
@@ -152,6 +152,28 @@ class HexapodWalk(base.Task):
         )
 
 
+def build_spec(
+    *,
+    slope: tuple[float, float] | None = None,
+    region: tuple[float, float, float, float, float, float] | None = None,
+) -> mujoco.MjSpec:
+    """The hexapod's MJCF (``models/hexapod_sand.xml``) as an MjSpec, without the engine
+    (``mjrft.load_model`` adds it).
+
+    Args:
+      slope: (slope, downhill azimuth from +x) [degrees]: a tilted plane through the origin
+        (``mjrft:surface_slope``); default the flat surface.
+      region: (xmin, ymin, zmin, xmax, ymax, zmax) [m, world]: the medium's box
+        (``mjrft:region``, as ``DEFORM_REGION``); default unbounded.
+    """
+    spec = mujoco.MjSpec.from_file(str(models_dir() / "hexapod_sand.xml"))
+    if slope is not None:
+        spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
+    if region is not None:
+        spec.add_numeric(name="mjrft:region", data=[float(v) for v in region])
+    return spec
+
+
 def make(
     *,
     random: Any = None,
@@ -181,18 +203,14 @@ def make(
         episode starts from pristine ground. repose: its angle of repose [deg] (default the
         material preset's). deform_every: steps between its updates (default 1).
     """
-    path = str(models_dir() / "hexapod_sand.xml")
-    spec = mujoco.MjSpec.from_file(path)
-    if slope is not None:
-        spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
-    if deform_cell:
-        if slope is not None:
-            raise ValueError("deform_cell: the deforming ground starts flat; pass slope=None")
-        spec.add_numeric(name="mjrft:region", data=list(DEFORM_REGION))
-        if deform_every is not None:
-            spec.add_numeric(name="mjrft:deform_every", data=[float(deform_every)])
-    model = load_model(spec, deform_cell=deform_cell, repose=repose)
-    physics = GranularPhysics.from_mjmodel(model, material=material, n_triangles=n_triangles)
+    if deform_cell and slope is not None:
+        raise ValueError("deform_cell: the deforming ground starts flat; pass slope=None")
+    spec = build_spec(slope=slope, region=DEFORM_REGION if deform_cell else None)
+    options = SceneOptions(
+        material=material, n_triangles=n_triangles, deform_cell=deform_cell, repose=repose,
+        deform_every=deform_every if deform_cell else None,
+    )  # fmt: skip
+    physics = GranularPhysics.from_mjmodel(load_model(spec, options))
     task = HexapodWalk(random=resolve_random(random, seed), control_timestep=control_timestep)
     return make_environment(physics, task, time_limit=time_limit, control_timestep=control_timestep)
 

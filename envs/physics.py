@@ -1,173 +1,165 @@
-"""A dm_control ``Physics`` whose every forward pass includes the granular RFT field.
+"""A dm_control ``Physics`` of a model that carries the granular RFT engine.
 
-``GranularPhysics`` owns a :class:`mjrft.GranularField` for its compiled model and keeps it
-*installed* for as long as the physics lives (``free()``, ``close()`` or garbage collection end
-it). Installing once, rather than around each ``step()``, matters because of dm_control's split
-stepping (``legacy_step=True``, the default of ``control.Environment``): ``Physics.step`` runs
-``mj_step2`` on forces computed by the *previous* call's ``mj_step1``, and ``mj_step1`` is where
-MuJoCo's passive callback (the field) writes the RFT wrench into ``xfrc_applied``. A field
-uninstalled between two ``step()`` calls would restore the user's ``xfrc_applied`` rows in
-between, and the first substep of every control step would lose its RFT force. Installed for the
-physics' lifetime, RFT acts in every substep and in every ``forward()`` (resets, rendering).
+The model comes from ``mjrft.load_model`` (or an environment's ``build_model``): it carries the
+engine plugin ``mjrft.granular``, which computes the RFT wrench inside every MuJoCo forward pass of
+that model and writes it into ``xfrc_applied``, with its state in ``mjData.plugin_state``. So the
+force acts in every substep and in every ``forward()`` (resets, rendering) with nothing to install
+or release, and dm_control's split stepping (``legacy_step=True``, the default of
+``control.Environment``: ``Physics.step`` runs ``mj_step2`` on the forces the previous call's
+``mj_step1`` computed) needs no special care: the wrench that ``mj_step1`` writes stays in
+``xfrc_applied`` (and the engine's state in ``plugin_state``) until the next ``mj_step2`` applies
+it. ``GranularPhysics`` adds the field's description (``field``, a :class:`mjrft.GranularField`
+for observations: surface, bodies, elements, the deforming ground), loaders that keep the engine
+(dm_control's own ``from_xml_path``/``from_xml_string`` compile plain models without it), copies
+and pickles that keep the scene options, and actuator-work accounting.
 
-Why this is safe:
-
-* model compilation elsewhere in the process is unaffected (mjrft's native callback guard
-  forwards only models with an installed field; README "Callback safety");
-* two environments (two models) in one process have two independent fields; physics copies that
-  share one model (``copy(share_model=True)``) share its field, reference-counted.
-
-Per substep the physics also accumulates the mechanical work of every actuator,
+Per substep the physics accumulates the mechanical work of every actuator,
 ``|actuator_force * actuator_velocity| * dt`` [J] (no regeneration: negative work costs too),
 and counts substeps; tasks read and reset these with :meth:`GranularPhysics.take_work`.
 
 Do not assign ``xfrc_applied`` rows of intruding bodies between ``mj_step1`` and ``mj_step2``
-(e.g. in a Task's ``before_step`` under legacy stepping): that step would miss its RFT force
-(README, "How the forces enter MuJoCo").
+(e.g. in a Task's ``before_step`` under legacy stepping): the step that follows would apply the
+assigned value without that substep's RFT force (the engine takes an assigned component as the
+user's part from its next pass on; README, "How the forces enter MuJoCo").
 """
 
 from __future__ import annotations
 
-import contextlib
 import threading
-import weakref
-from dataclasses import dataclass
 from typing import Any
 
 import mujoco
 import numpy as np
 from dm_control.mujoco import engine, wrapper
 
-from mjrft import GranularField, Material
+from mjrft import GranularField, SceneOptions, load_model
+from mjrft.field import plugin
 
-
-@dataclass
-class _Installed:
-    """One installed field and how many live physics objects use it."""
-
-    field: GranularField
-    stack: contextlib.ExitStack
-    users: int
-
-
-_lock = threading.Lock()
-_installed: dict[int, _Installed] = {}
-
-
-def _acquire(model: mujoco.MjModel, options: dict[str, Any]) -> GranularField:
-    """The installed field of `model`, building and installing it on first use."""
-    with _lock:
-        entry = _installed.get(model._address)
-        if entry is None:
-            field = GranularField(
-                model, options.get("material"), n_triangles=options.get("n_triangles")
-            )
-            stack = contextlib.ExitStack()
-            stack.enter_context(field.installed())
-            entry = _Installed(field, stack, 0)
-            _installed[model._address] = entry
-        entry.users += 1
-        return entry.field
-
-
-def _release(key: int) -> None:
-    """Drop one user of the field of model address `key`; uninstall it after the last."""
-    with _lock:
-        entry = _installed.get(key)
-        if entry is None:
-            return
-        entry.users -= 1
-        if entry.users > 0:
-            return
-        del _installed[key]
-    entry.stack.close()
-
-
-def installed_fields() -> int:
-    """Number of models whose field an environment currently keeps installed."""
-    return len(_installed)
+#: What a pickled physics keeps of its MjData (mj_getState): the whole integration state,
+#: the engine's ``plugin_state`` and the user's inputs (ctrl, applied forces) included.
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 class GranularPhysics(engine.Physics):
-    """dm_control ``mujoco.Physics`` with the model's granular field installed for its lifetime.
+    """dm_control ``mujoco.Physics`` of a model that carries the granular engine.
 
-    Build with :meth:`from_mjmodel` (or the inherited ``from_xml_path`` / ``from_xml_string``,
-    which use the MJCF's material and resolution). Everything else is dm_control's Physics.
+    Build with :meth:`from_mjmodel` (a model from ``mjrft.load_model``), or with
+    :meth:`from_xml_path` / :meth:`from_xml_string` (MJCF with an ``mjrft:`` section; scene
+    options as keywords). A model without the engine is refused (``EngineError`` naming
+    ``mjrft.load_model``). Everything else is dm_control's Physics.
 
     Attributes (after construction):
-      field: the :class:`mjrft.GranularField` acting on this physics (``field.last_wrench`` is
-        the wrench of the latest forward pass).
+      field: the :class:`mjrft.GranularField` of the model (shared by copies that share the
+        model); ``field.wrench_of(physics.data.ptr)`` or :attr:`rft_wrench` is the wrench of
+        this physics' latest forward pass.
       substeps: physics steps taken since construction.
     """
 
-    _field_options: dict[str, Any] | None = None  # set per instance by from_mjmodel
+    _scene_options: SceneOptions | None = None  # the model's scene options (set on load)
+    field: GranularField | None = None
 
+    # -- construction ----------------------------------------------------------------------
     @classmethod
     def from_mjmodel(
-        cls,
-        model: mujoco.MjModel,
-        *,
-        material: Material | str | None = None,
-        n_triangles: int | None = None,
+        cls, model: mujoco.MjModel, options: SceneOptions | None = None
     ) -> GranularPhysics:
-        """Physics of a compiled model.
+        """Physics of a compiled model that carries the engine.
 
         Args:
-          model: compiled ``mujoco.MjModel`` with an mjrft scene in its ``<custom>`` section.
-          material: a :class:`mjrft.Material` or preset name overriding the MJCF medium.
-          n_triangles: triangle count of every primitive intruding geom (meshes keep theirs).
+          model: a ``mujoco.MjModel`` from ``mjrft.load_model`` (or ``mjrft.add_granular``).
+          options: the SceneOptions the model was loaded with, for a model loaded outside this
+            process (an MJB file); by default those ``mjrft.load_model`` recorded.
+        Raises:
+          mjrft.field.plugin.EngineError for a model without the engine; SceneError for
+          options that do not give the model's tables.
         """
-        if isinstance(material, str):
-            material = Material.preset(material)
         obj = cls.__new__(cls)
-        obj._field_options = {"material": material, "n_triangles": n_triangles}
+        obj._scene_options = options if options is not None else plugin.options_of(model)
         obj.__init__(wrapper.MjData(wrapper.MjModel(model)))
         return obj
 
-    # -- lifetime of the installed field ---------------------------------------------------
+    @classmethod
+    def from_xml_path(cls, file_path: str, **options: Any) -> GranularPhysics:
+        """Physics of an MJCF file with an ``mjrft:`` section, loaded with the engine
+        (``mjrft.load_model``); options: SceneOptions fields (material, n_triangles, ...)."""
+        return cls.from_mjmodel(load_model(str(file_path), **options))
+
+    @classmethod
+    def from_xml_string(
+        cls, xml_string: str, assets: dict | None = None, **options: Any
+    ) -> GranularPhysics:
+        """Physics of an MJCF string with an ``mjrft:`` section, loaded with the engine;
+        assets: ``{filename: bytes}`` the MJCF refers to; options: SceneOptions fields."""
+        spec = mujoco.MjSpec.from_string(xml_string, assets=assets or {})
+        return cls.from_mjmodel(load_model(spec, **options))
+
+    def reload_from_xml_path(self, file_path: str, **options: Any) -> None:
+        """Reload from an MJCF file, with the engine (as :meth:`from_xml_path`)."""
+        model = load_model(str(file_path), **options)
+        self._scene_options = plugin.options_of(model)
+        self._reload_from_model(wrapper.MjModel(model))
+
+    def reload_from_xml_string(
+        self, xml_string: str, assets: dict | None = None, **options: Any
+    ) -> None:
+        """Reload from an MJCF string, with the engine (as :meth:`from_xml_string`)."""
+        model = load_model(mujoco.MjSpec.from_string(xml_string, assets=assets or {}), **options)
+        self._scene_options = plugin.options_of(model)
+        self._reload_from_model(wrapper.MjModel(model))
+
     def _reload_from_data(self, data: wrapper.MjData) -> None:
-        self._detach_field()
         model = data.model.ptr
-        self.field = _acquire(model, self._field_options or {})
-        self._finalizer = weakref.finalize(self, _release, model._address)
+        if self.field is None or self.field.model is not model:
+            if self._scene_options is None:
+                self._scene_options = plugin.options_of(model)
+            # A copied model carries the same tables; the options say how they were made.
+            self.field = GranularField(model, options=self._scene_options)
         self.substeps = 0
         self._work = np.zeros(model.nu)
         self._work_substeps = 0
-        super()._reload_from_data(data)  # runs forward() with the field installed
+        super()._reload_from_data(data)  # runs forward(): the engine acts in it
 
-    def _detach_field(self) -> None:
-        finalizer = getattr(self, "_finalizer", None)
-        if finalizer is not None:
-            finalizer()  # runs _release once
-
-    def free(self) -> None:
-        """Uninstall the field (when no other physics shares the model) and free MuJoCo data."""
-        self._detach_field()
-        super().free()
-
-    def copy(self, share_model: bool = False) -> GranularPhysics:
-        """A copy with the same field options (and, with ``share_model``, the same field)."""
-        new_data = self.data._make_copy(share_model=share_model)
-        # The copied xfrc_applied rows hold user + RFT; a field that never saw them (a copied
-        # model has its own) would take the RFT part for a user force. Keep the user part only;
-        # the forward pass in _reload_from_data writes the RFT of the copied state again.
-        new_data.xfrc_applied[:] = self.field.user_xfrc(self.data.ptr)
+    # -- copies ----------------------------------------------------------------------------
+    def _blank(self) -> GranularPhysics:
+        """An uninitialised instance with this one's scene options."""
         new = type(self).__new__(type(self))
         new._warnings_cause_exception = True
-        new._field_options = self._field_options
-        new._reload_from_data(new_data)
+        new._scene_options = self._scene_options
         return new
 
-    def __getstate__(self) -> tuple[wrapper.MjData, dict[str, Any], np.ndarray]:
-        return self.data, self._field_options, self.field.user_xfrc(self.data.ptr)
+    def copy(self, share_model: bool = False) -> GranularPhysics:
+        """A copy (MjData copied with the engine's state); with ``share_model`` it shares the
+        model and its field, else it has a copy of the model (with the engine) and its field."""
+        new = self._blank()
+        if share_model:
+            new.field = self.field
+        new._reload_from_data(self.data._make_copy(share_model=share_model))
+        return new
 
-    def __setstate__(self, state: Any) -> None:
-        data, options, user_xfrc = state
-        data.xfrc_applied[:] = user_xfrc  # without the RFT part (see copy)
+    def __getstate__(self) -> tuple[mujoco.MjModel, np.ndarray, SceneOptions]:
+        # The model and the state (mj_getState), not the MjData: MuJoCo's pickle of an MjData
+        # copies its plugin_data pointers, so the unpickled copy would share (and free) the
+        # original's engine instance.
+        m, d = self.model.ptr, self.data.ptr
+        state = np.empty(mujoco.mj_stateSize(m, _STATE))
+        mujoco.mj_getState(m, d, state, _STATE)
+        return m, state, self._scene_options
+
+    def __setstate__(self, state: tuple[mujoco.MjModel, np.ndarray, SceneOptions]) -> None:
+        model, values, options = state
+        data = mujoco.MjData(model)
+        mujoco.mj_setState(model, data, values, _STATE)
         self._contexts_lock = threading.Lock()
         self._warnings_cause_exception = True
-        self._field_options = options
-        self._reload_from_data(data)
+        self._scene_options = options
+        self._reload_from_data(wrapper.MjData(data))
+
+    # -- the field's results ---------------------------------------------------------------
+    @property
+    def rft_wrench(self) -> np.ndarray:
+        """(nbody, 6) RFT wrench of this physics' latest forward pass, world frame: force [N]
+        then torque [N m] about each body's CoM (a view, updated by every pass)."""
+        return self.field.wrench_of(self.data.ptr)
 
     # -- stepping --------------------------------------------------------------------------
     def step(self, nstep: int = 1) -> None:

@@ -44,7 +44,7 @@ import mujoco
 import numpy as np
 from dm_env import specs
 
-from mjrft import Material
+from mjrft import Material, SceneOptions, load_model
 from mjrft.app.demos import ROOT_PIVOT_ABOVE_APEX
 
 from .base import DepthPerWorkTask, make_environment, models_dir, resolve_random
@@ -55,6 +55,9 @@ MAX_TILT = 0.5  # rad
 MAX_YAW_RATE = 1.0  # rad/s
 START_TILT = math.radians(10.0)  # rad, the paper's tilt
 DEFAULT_THRUST = 0.5  # N
+#: Physics step [s]: the rig's 1 ms halved in cost (its servos and the RFT contact are stable at
+#: 2 ms).
+DEFAULT_TIMESTEP = 0.002
 TILT_KP, TILT_KV, TILT_ARMATURE = 10.0, 0.2, 1e-3  # N m/rad, N m s/rad, kg m^2
 #: Viscous friction of the carriage's linear bearing [N s/m] (damps RFT's stick-slip chatter).
 SLIDE_DAMPING = 20.0
@@ -62,13 +65,15 @@ THRUST_ARMATURE = 0.05  # kg, reflected inertia of the thrust drive
 COUNTERWEIGHTED = ("carriage", "yaw_frame")
 
 
-def build_model() -> mujoco.MjModel:
-    """The root rig with a tilt servo and a thrust-driven carriage (see module docstring).
+def build_spec(timestep: float = DEFAULT_TIMESTEP) -> mujoco.MjSpec:
+    """The root rig with a tilt servo and a thrust-driven carriage (see module docstring), as an
+    MjSpec without the engine (``build_model`` adds it); timestep [s].
 
     Actuators, in order: thrust (motor on "descent", ctrl [N], positive down), yaw
     (intvelocity, ctrl [rad/s]), tilt (position, ctrl [rad]). qpos: descent, yaw, tilt.
     """
     spec = mujoco.MjSpec.from_file(str(models_dir() / "root_circumnutation.xml"))
+    spec.option.timestep = timestep
     root = spec.body("root")
     root.alt.type = mujoco.mjtOrientation.mjORIENTATION_QUAT
     root.quat = [1.0, 0.0, 0.0, 0.0]
@@ -96,7 +101,15 @@ def build_model() -> mujoco.MjModel:
     key.qvel = [0.0, 0.0, 0.0]
     key.ctrl = [DEFAULT_THRUST, 0.0, START_TILT]
     key.act = [0.0]
-    return spec.compile()
+    return spec
+
+
+def build_model(
+    timestep: float = DEFAULT_TIMESTEP, options: SceneOptions | None = None
+) -> mujoco.MjModel:
+    """The rig of ``build_spec`` compiled with the granular engine (``mjrft.load_model``);
+    options: SceneOptions on top of the MJCF's (material, ...)."""
+    return load_model(build_spec(timestep), options)
 
 
 class RootProbe(DepthPerWorkTask):
@@ -154,7 +167,7 @@ def make(
     seed: int | None = None,
     time_limit: float = 20.0,
     control_timestep: float = 0.02,
-    timestep: float = 0.002,
+    timestep: float = DEFAULT_TIMESTEP,
     thrust: float = DEFAULT_THRUST,
     material: Material | str | None = None,
     n_triangles: int | None = None,
@@ -164,14 +177,12 @@ def make(
     Args:
       random / seed: task randomness (int seed or RandomState).
       time_limit: episode length [s]. control_timestep: [s], a multiple of ``timestep``.
-      timestep: physics step [s] (the rig's 1 ms halved in cost: its servos and the RFT
-        contact are stable at 2 ms).
+      timestep: physics step [s] (default ``DEFAULT_TIMESTEP``).
       thrust: constant downward push on the carriage [N], in [0, 10].
       material: medium override (preset name or Material; default the rig's glass beads).
       n_triangles: ignored for this mesh intruder (kept for a uniform signature).
     """
-    model = build_model()
-    model.opt.timestep = timestep
-    physics = GranularPhysics.from_mjmodel(model, material=material, n_triangles=n_triangles)
+    options = SceneOptions(material=material, n_triangles=n_triangles)
+    physics = GranularPhysics.from_mjmodel(build_model(timestep, options))
     task = RootProbe(random=resolve_random(random, seed), thrust=thrust)
     return make_environment(physics, task, time_limit=time_limit, control_timestep=control_timestep)

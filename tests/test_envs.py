@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import copy
-import gc
 import math
 import pickle
 import subprocess
@@ -14,11 +12,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from dm_control.mujoco import engine, wrapper
 from dm_env import specs
 from mjrft.envs import base, hexapod_sand
-from mjrft.envs.physics import GranularPhysics, installed_fields
+from mjrft.envs.physics import GranularPhysics
 
-from mjrft import GranularField, envs
+from mjrft import envs, load_model
+from mjrft.field.plugin import EngineError
 
 try:
     import gymnasium
@@ -197,7 +197,7 @@ def test_no_nan_over_1000_control_steps_of_random_actions(name):
             assert np.isfinite(ts.reward)
             for key, value in ts.observation.items():
                 assert np.all(np.isfinite(value)), f"{key} not finite at t={ts}"
-            acted += bool(np.any(env.physics.field.last_wrench[intruding] != 0.0))
+            acted += bool(np.any(env.physics.rft_wrench[intruding] != 0.0))
         d = env.physics.data
         for arr in (d.qpos, d.qvel, d.act, d.qacc, d.xfrc_applied):
             assert np.all(np.isfinite(arr))
@@ -235,10 +235,11 @@ def test_after_every_substep_xfrc_holds_the_rft_wrench_of_the_new_state(name):
         rows = [be.body for be in field.bodies]
         for _ in range(3 * env.n_sub_steps):
             phys.step(1)
+            stepped = phys.rft_wrench[rows].copy()  # the engine's, from the substep's mj_step1
             expected = field.wrench(data)[rows]  # explicit evaluation at the current state
             np.testing.assert_allclose(data.xfrc_applied[rows], expected, rtol=1e-12, atol=1e-15)
             assert np.any(expected != 0.0), "a substep without RFT force"
-            np.testing.assert_array_equal(field.last_wrench[rows], expected)
+            np.testing.assert_array_equal(stepped, expected)
     finally:
         env.close()
 
@@ -260,12 +261,13 @@ def test_trajectory_equals_rft_in_every_substep_and_not_once_per_control_step(na
         env.reset()
         for _ in range(10):  # into the medium
             env.step(PUSH[name])
-        # Reference 1: plain mj_step on this model (its field is installed: RFT in every step).
+        # Reference 1: plain mj_step on this model (it carries the engine: RFT in every step).
         every = mujoco.MjData(model)
-        # Reference 2: a copy of the model without the field; the wrench at the start of each
-        # control step held for its first substep only (what a Task-level force would do).
-        stale_model = copy.copy(model)
-        once = mujoco.MjData(stale_model)
+        # Reference 2: the rig compiled without the engine; the wrench at the start of each
+        # control step (evaluated on a probe of the engine's model) held for its first substep
+        # only (what a Task-level force would do).
+        stale_model = getattr(envs, name).build_spec().compile()
+        once, probe = mujoco.MjData(stale_model), mujoco.MjData(model)
         for ref in (every, once):
             ref.qpos[:], ref.qvel[:], ref.act[:] = data.qpos, data.qvel, data.act
             ref.time = data.time
@@ -274,8 +276,10 @@ def test_trajectory_equals_rft_in_every_substep_and_not_once_per_control_step(na
             env.step(PUSH[name])
             ctrl = data.ctrl.copy()
             step_reference(model, every, ctrl, n)
-            mujoco.mj_forward(stale_model, once)
-            step_reference(stale_model, once, ctrl, n, phys.field.wrench(once))
+            probe.qpos[:], probe.qvel[:], probe.act[:] = once.qpos, once.qvel, once.act
+            probe.time = once.time
+            mujoco.mj_forward(model, probe)
+            step_reference(stale_model, once, ctrl, n, phys.field.wrench(probe))
         scale = np.abs(data.qvel).max()
         err_every = np.abs(every.qvel - data.qvel).max() / scale
         err_once = np.abs(once.qvel - data.qvel).max() / scale
@@ -285,23 +289,19 @@ def test_trajectory_equals_rft_in_every_substep_and_not_once_per_control_step(na
         env.close()
 
 
-# --- lifetime of the installed field ------------------------------------------------------------
+# --- the model carries the engine ---------------------------------------------------------------
 
 
-def test_two_environments_do_not_interfere_and_close_uninstalls():
-    before = installed_fields()
+def test_two_environments_do_not_interfere_and_the_model_keeps_its_engine_after_close():
     alone = make("hexapod_sand", seed=0)
     actions = random_actions(alone.action_spec(), 15, seed=9)
     solo, _ = rollout(alone, actions)
     alone.close()
     a, b = make("hexapod_sand", seed=0), make("ellipsoid_burrow", seed=0)
-    assert installed_fields() == before + 2
     model = a.physics.model.ptr
     try:
         a.reset()
         b.reset()
-        # Compiling another model while both fields are installed works (native guard).
-        mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
         for i, act in enumerate(actions):
             b.step(PUSH["ellipsoid_burrow"])
             ts = a.step(act)
@@ -310,16 +310,13 @@ def test_two_environments_do_not_interfere_and_close_uninstalls():
     finally:
         a.close()
         b.close()
-    assert installed_fields() == before
-    # After close the model steps without RFT (nothing written into xfrc_applied)...
+    # Closing frees the physics, not the engine: the model carries it, so new MjData of the model
+    # stand on the medium (RFT written into xfrc_applied) rather than fall through it.
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     for _ in range(200):
         mujoco.mj_step(model, data)
-    assert data.qpos[2] < -0.1 and np.all(data.xfrc_applied == 0.0)  # free fall through
-    # ...and a new field can be installed on it.
-    with GranularField(model).installed():
-        mujoco.mj_step(model, data)
+    assert data.qpos[2] > -0.1 and np.any(data.xfrc_applied != 0.0)
 
 
 def test_physics_copy_shares_or_rebuilds_the_field():
@@ -331,33 +328,56 @@ def test_physics_copy_shares_or_rebuilds_the_field():
         phys = env.physics
         shared = phys.copy(share_model=True)
         own = phys.copy()
+        # A pickle keeps the model and mj_getState's state, not the MjData (whose pickle would
+        # share the original's engine instance: freeing both below would free it twice).
         unpickled = pickle.loads(pickle.dumps(phys))
         assert shared.field is phys.field
         assert own.field is not phys.field and unpickled.field is not phys.field
+        assert own.model.ptr is not phys.model.ptr and unpickled.model.ptr is not phys.model.ptr
+        # The copies carry the engine's state (e.g. the low-speed treatment's) with the MjData.
+        np.testing.assert_array_equal(unpickled.data.plugin_state, own.data.plugin_state)
         for p in (shared, own, unpickled):
             p.step(20)
-            assert np.any(p.field.last_wrench != 0.0)
-        # Same trajectory whichever field acts (a copied RFT wrench is not taken for a user force).
+            assert np.any(p.rft_wrench != 0.0)
+        # Same trajectory whichever copy (a copied RFT wrench is not taken for a user force).
         np.testing.assert_allclose(shared.data.qpos, own.data.qpos, atol=1e-12)
         np.testing.assert_allclose(unpickled.data.qpos, own.data.qpos, atol=1e-12)
         for p in (shared, own, unpickled):
             p.free()
-        env.step(PUSH["root_probe"])  # the original's field is still installed
-        assert np.any(phys.field.last_wrench != 0.0)
+        env.step(PUSH["root_probe"])  # the original steps on, with its engine
+        assert np.any(phys.rft_wrench != 0.0)
     finally:
         env.close()
 
 
-def test_physics_from_xml_path_and_garbage_collection_release_the_field():
-    before = installed_fields()
-    phys = GranularPhysics.from_xml_path(str(ROOT / "models" / "sphere_drop.xml"))
-    assert installed_fields() == before + 1
-    phys.reset(0)
-    phys.step(100)  # the sphere falls into the medium
-    assert np.any(phys.field.last_wrench != 0.0)
-    del phys
-    gc.collect()
-    assert installed_fields() == before
+def test_physics_from_mjcf_carries_the_engine_and_a_plain_model_is_refused():
+    """dm_control's loaders compile MJCF without the engine; GranularPhysics' load it with the
+    engine (scene options as keywords), and dm_control's Physics.from_model keeps the engine of
+    a model that carries it."""
+    path = ROOT / "models" / "sphere_drop.xml"
+    loaded = (
+        GranularPhysics.from_xml_path(str(path), material="poppy_seeds_lp"),
+        GranularPhysics.from_xml_string(path.read_text(), material="poppy_seeds_lp"),
+        engine.Physics.from_model(wrapper.MjModel(load_model(str(path)))),
+    )
+    reloaded = GranularPhysics.from_xml_path(str(path))
+    reloaded.reload_from_xml_path(str(path), material="poppy_seeds_lp")
+    plain = engine.Physics.from_xml_path(str(path))
+    assert plain.model.nplugin == 0
+    plain.reset(0)
+    plain.step(100)  # 0.1 s of free fall: 4.9 cm, through the medium
+    for phys in (*loaded, reloaded):
+        phys.reset(0)
+        phys.step(100)  # the sphere falls into the medium, which holds it within a few mm
+        assert phys.data.qpos[2] > plain.data.qpos[2] + 0.02
+        assert np.any(phys.data.xfrc_applied[1] != 0.0)
+    for phys in (*loaded[:2], reloaded):
+        assert phys.field.material.name == "poppy_seeds_lp"
+        np.testing.assert_array_equal(phys.rft_wrench[1], phys.data.xfrc_applied[1])
+    np.testing.assert_array_equal(loaded[0].data.qpos, loaded[1].data.qpos)
+    np.testing.assert_array_equal(loaded[0].data.qpos, reloaded.data.qpos)
+    with pytest.raises(EngineError, match="mjrft.load_model"):
+        GranularPhysics.from_model(plain.model)
 
 
 # --- rewards ------------------------------------------------------------------------------------

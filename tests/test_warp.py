@@ -1,4 +1,8 @@
-"""mjrft.warp on Warp's CPU device: the same RFT forces as the CPU field, world by world.
+"""mjrft.warp on Warp's CPU device: the same RFT forces as the C++ engine, world by world.
+
+MuJoCo Warp gets each rig compiled without the engine plugin (it runs no C plugins); the CPU
+side is the same rig loaded with the engine (``mjrft.load_model``, ``low_speed="off"``: the Warp
+field is the pure model) and stepped by MuJoCo.
 
 Warp compiles each kernel module once and caches it (~/.cache/warp); MuJoCo Warp's own step
 compiles for a few seconds per model on first use.
@@ -17,6 +21,7 @@ pytest.importorskip("mujoco_warp")
 
 import mujoco_warp as mjw
 import warp as wp
+from mjrft.envs import hexapod_sand
 
 import mjrft
 import mjrft.warp as mw
@@ -26,8 +31,8 @@ from mjrft.field import GranularField
 
 DEVICE = "cpu"
 wp.config.quiet = True  # no line per kernel module loaded
-# The Warp law is the CPU law's equations in float64 with libm tanh and log (the CPU kernel
-# uses polynomials accurate to ~2e-15): the two agree to rounding.
+# The Warp law is the engine's equations in float64 with libm tanh and log (the engine uses
+# polynomials accurate to ~2e-15): the two agree to rounding.
 RTOL_LAW = 1e-12
 # Wrenches: the same quadrature on the same states, summed in another order.
 RTOL_WRENCH = 1e-12
@@ -72,18 +77,26 @@ def test_the_warp_law_equals_element_forces(preset, dynamic):
     assert_forces_close(got, want, RTOL_LAW)
 
 
-def load(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
+def spec_of(name: str) -> mujoco.MjSpec:
     """A rig of models/; "hexapod_slope": the hexapod on a plane tilted 12 deg (downhill +x)."""
     if name == "hexapod_slope":
-        spec = mujoco.MjSpec.from_file(str(models_dir() / "hexapod_sand.xml"))
-        spec.add_numeric(name="mjrft:surface_slope", data=[12.0, 0.0])
-        mjm = spec.compile()
-    else:
-        mjm = mujoco.MjModel.from_xml_path(str(models_dir() / f"{name}.xml"))
+        return hexapod_sand.build_spec(slope=(12.0, 0.0))
+    return mujoco.MjSpec.from_file(str(models_dir() / f"{name}.xml"))
+
+
+def load(name: str) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """The rig compiled without the engine (MuJoCo Warp's model), and its keyframe's MjData."""
+    mjm = spec_of(name).compile()
     mjd = mujoco.MjData(mjm)
     if mjm.nkey:
         mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
     return mjm, mjd
+
+
+def load_cpu(name: str) -> tuple[mujoco.MjModel, mujoco.MjData, GranularField]:
+    """The rig with the engine as the pure model (low_speed="off"), an MjData, its field."""
+    model = mjrft.load_model(spec_of(name), low_speed="off")
+    return model, mujoco.MjData(model), GranularField(model)
 
 
 def initial_states(name, mjm, mjd):
@@ -137,36 +150,34 @@ def test_wrenches_equal_the_cpu_field_on_the_same_states(name):
     field.compute(d)
     got = field.wrenches(d)
     elem = field.element_forces_of(d)
-    cpu = GranularField(mjm, low_speed="off")
+    _, cpu_d, cpu = load_cpu(name)
     sizes = [len(b.areas) for b in cpu.bodies]
     offsets = {b.body: int(o) for b, o in zip(cpu.bodies, np.cumsum([0, *sizes[:-1]]), strict=True)}
     acting = 0
     for w in range(NWORLD):
-        world_kinematics(mjd, d, w)
-        want = cpu.wrench(mjd)
+        world_kinematics(cpu_d, d, w)
+        want = cpu.wrench(cpu_d)
         assert np.abs(want).max() > 0.0
         np.testing.assert_allclose(got[w], want, rtol=0, atol=RTOL_WRENCH * np.abs(want).max())
-        for st in cpu.element_states(mjd):  # per element, where the CPU field evaluated
+        for st in cpu.element_states(cpu_d):  # per element, where the engine evaluated
             offset = offsets[st.body]  # the Warp field's elements: the bodies' blocks in order
             assert_forces_close(elem[w, offset + st.index], st.force, RTOL_WRENCH)
             acting += np.count_nonzero(np.any(st.force != 0.0, axis=1))
     assert acting > 50
 
 
-def cpu_trajectory(mjm, mjd, cpu, qpos, qvel, nstep):
-    """qpos after nstep steps of mj_step with the CPU field applied explicitly (held over the
-    step, as the passive callback holds it in an Euler step)."""
-    if mjm.nkey:
-        mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
+def cpu_trajectory(model, data, qpos, qvel, nstep):
+    """qpos after nstep mj_steps of the engine's model (the engine in every step) from the
+    keyframe (or the reset state) with qpos, qvel."""
+    if model.nkey:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
     else:
-        mujoco.mj_resetData(mjm, mjd)
-    mjd.qpos[:] = qpos
-    mjd.qvel[:] = qvel
+        mujoco.mj_resetData(model, data)
+    data.qpos[:] = qpos
+    data.qvel[:] = qvel
     for _ in range(nstep):
-        mujoco.mj_forward(mjm, mjd)
-        mjd.xfrc_applied[:] = cpu.wrench(mjd)
-        mujoco.mj_step(mjm, mjd)
-    return mjd.qpos.copy()
+        mujoco.mj_step(model, data)
+    return data.qpos.copy()
 
 
 @pytest.mark.parametrize(
@@ -182,9 +193,9 @@ def test_trajectories_follow_the_cpu_field_world_by_world(name, nstep):
         for _ in range(nstep):
             mjw.step(m, d)
     got = d.qpos.numpy()
-    cpu = GranularField(mjm, low_speed="off")
+    cpu_model, cpu_d, _ = load_cpu(name)
     for w in range(NWORLD):
-        want = cpu_trajectory(mjm, mjd, cpu, qpos[w], qvel[w], nstep)
+        want = cpu_trajectory(cpu_model, cpu_d, qpos[w], qvel[w], nstep)
         moved = np.abs(want - qpos[w]).max()
         assert moved > 20 * ATOL_QPOS  # the run goes somewhere
         np.testing.assert_allclose(got[w], want, rtol=0, atol=ATOL_QPOS)
@@ -245,7 +256,7 @@ def mechanical_energy(mjm, qpos, qvel):
 
 def test_a_resting_body_gains_no_more_energy_than_on_the_cpu_without_the_treatment():
     """The Warp field has no low-speed treatment: a sphere at rest in the medium chatters as the
-    CPU field's pure model does; it must not gain more energy than that."""
+    engine's pure model does; it must not gain more energy than that."""
     mjm, mjd = load("sphere_drop")
     field = mw.WarpField(mjm, device=DEVICE)
     nstep = 400
@@ -259,23 +270,21 @@ def test_a_resting_body_gains_no_more_energy_than_on_the_cpu_without_the_treatme
             mjw.step(m, d)
             e = mechanical_energy(mjm, d.qpos.numpy()[0].astype(float), d.qvel.numpy()[0])
             gpu_rise = max(gpu_rise, e - e0)
-    cpu = GranularField(mjm, low_speed="off")
-    mjd.qpos[:] = qpos
-    mjd.qvel[:] = 0.0
+    cpu_model, cpu_d, _ = load_cpu("sphere_drop")
+    mujoco.mj_resetDataKeyframe(cpu_model, cpu_d, 0)
+    cpu_d.qpos[:] = qpos
+    cpu_d.qvel[:] = 0.0
     cpu_rise = 0.0
     for _ in range(nstep):
-        mujoco.mj_forward(mjm, mjd)
-        mjd.xfrc_applied[:] = cpu.wrench(mjd)
-        mujoco.mj_step(mjm, mjd)
-        cpu_rise = max(cpu_rise, mechanical_energy(mjm, mjd.qpos, mjd.qvel) - e0)
+        mujoco.mj_step(cpu_model, cpu_d)
+        cpu_rise = max(cpu_rise, mechanical_energy(mjm, cpu_d.qpos, cpu_d.qvel) - e0)
     # float32 state: its potential energy resolves m g z to m g * 6e-8 * |z| (~1e-9 J here)
-    print(f"largest energy rise: Warp field {gpu_rise:.3e} J, CPU field {cpu_rise:.3e} J")
+    print(f"largest energy rise: Warp field {gpu_rise:.3e} J, CPU engine {cpu_rise:.3e} J")
     assert gpu_rise <= cpu_rise + 1e-8, (gpu_rise, cpu_rise)
 
 
 SCENE = """
 <mujoco>
-  <size nuserdata="6000"/>
   <custom>
     <text name="mjrft:material" data="glass_beads"/>
     {extra}
@@ -303,6 +312,17 @@ def test_unsupported_scenes_are_named(extra, named):
     mjm = mujoco.MjModel.from_xml_string(SCENE.format(extra=extra))
     with pytest.raises(mw.UnsupportedScene, match=named):
         mw.WarpField(mjm, device=DEVICE)
+
+
+def test_a_model_with_the_engine_is_refused_naming_the_plain_one():
+    """MuJoCo Warp runs no C plugins (mjw.put_model cannot take a model with the engine's
+    instance): WarpField says which model to give it instead."""
+    mjm = mjrft.load_model(SCENE.format(extra=""))
+    with pytest.raises(ValueError, match=r"carries the engine plugin.*plain model"):
+        mw.WarpField(mjm, device=DEVICE)
+    plain = mujoco.MjModel.from_xml_string(SCENE.format(extra=""))
+    field = mw.WarpField(plain, device=DEVICE)
+    assert field.nelem == GranularField(mjm).n_elements  # the engine's elements
 
 
 @pytest.mark.filterwarnings("ignore::mjrft.core.material.MaterialWarning")  # a stand-in medium

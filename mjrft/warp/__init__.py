@@ -1,16 +1,17 @@
 """The granular field on MuJoCo Warp: every world's RFT wrenches in a few kernel launches.
 
-``WarpField(mjm, mjw_model)`` reads the scene from the MJCF exactly as ``GranularField`` does
-(the same meshing, culling bounds, material and region), keeps the element tables on the Warp
-device, and each forward pass computes, for every world of an ``mjw.Data``, the wrench on every
-tagged body from that world's ``xpos``, ``xmat``, ``cvel`` and ``subtree_com``; it writes them
-into ``xfrc_applied`` (user part kept, per component, as ``mjrft.field.ownership``) so load
-cells see them. ``field.install()`` makes it MuJoCo Warp's passive callback, so ``mjw.step``
-(and a CUDA graph of it) includes the field. What it supports and how it differs from the CPU
-field: docs/gpu.md.
+``WarpField(mjm)`` takes the engine's element tables of the MJCF's scene
+(``mjrft.field.plugin.setup``: the same meshing, culling bounds, material and region as
+``mjrft.load_model`` gives the C++ engine) from a plain compiled model (MuJoCo Warp runs no C
+plugins, so ``mjm`` is compiled without the engine), keeps them on the Warp device, and each
+forward pass computes, for every world of an ``mjw.Data``, the wrench on every tagged body from
+that world's ``xpos``, ``xmat``, ``cvel`` and ``subtree_com``; it writes them into
+``xfrc_applied`` (user part kept, per component, as the engine does) so load cells see them.
+``field.install()`` makes it MuJoCo Warp's passive callback, so ``mjw.step`` (and a CUDA graph
+of it) includes the field. What it supports and how it differs from the CPU engine: docs/gpu.md.
 
 Optional: needs ``pip install "mjrft[gpu]"`` (warp-lang, mujoco-warp). Runs on Warp's CPU
-device too, which is how the tests check it against the CPU field.
+device too, which is how the tests check it against the engine on the CPU.
 """
 
 from __future__ import annotations

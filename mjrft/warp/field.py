@@ -1,12 +1,13 @@
 """``WarpField``: the granular field's static tables on a Warp device and its per-pass kernels.
 
 Each pass, for the ``nworld`` worlds of an ``mjw.Data``: ``cull_kernel`` (nworld x tagged geoms)
-marks the geoms whose bounding sphere is above the surface or outside the region, as the CPU
-field's ``culled``; ``element_kernel`` (nworld x elements) evaluates every element of a geom in
-play at its quadrature point (``mjrft.warp.quadrature``) and adds its force and torque to its
-body's wrench; ``apply_kernel`` (nworld x tagged bodies) writes user part + RFT wrench into
-``xfrc_applied`` (``mjrft.field.ownership``'s per-component rule). The element law runs in
-float64 whatever MuJoCo Warp's own precision (float32): poses and velocities are widened on load.
+marks the geoms whose bounding sphere is above the surface or outside the region, as the
+engine's ``Culled`` (engine/evaluate.cc); ``element_kernel`` (nworld x elements) evaluates every
+element of a geom in play at its quadrature point (``mjrft.warp.quadrature``) and adds its force
+and torque to its body's wrench; ``apply_kernel`` (nworld x tagged bodies) writes user part + RFT
+wrench into ``xfrc_applied`` (the engine's per-component rule for the user's part,
+docs/field.md). The element law runs in float64 whatever MuJoCo Warp's own precision (float32):
+poses and velocities are widened on load.
 
 Frames: element tables in the body frame; everything per world in the world frame; wrenches
 are force [N] then torque [N m] about the body's CoM (``xipos``), ``xfrc_applied``'s layout.
@@ -24,8 +25,10 @@ import warp as wp
 
 from mjrft.core import surface as core_surface
 from mjrft.core.material import Material
-from mjrft.field.granular_field import GranularField
-from mjrft.field.scene import SceneError
+from mjrft.field import plugin
+from mjrft.field.model import FieldSetup
+from mjrft.field.options import SceneOptions
+from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.warp import surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
 from mjrft.warp.quadrature import quadrature_point
@@ -62,8 +65,8 @@ def cull_kernel(
     # Data out
     cull: wp.array2d(dtype=int),
 ):  # fmt: skip
-    """cull[w, g] = 1 if tagged geom g of world w cannot touch the medium (mjrft.field.evaluate
-    ``culled``: bounding sphere above the surface or outside the region; radius 0 never)."""
+    """cull[w, g] = 1 if tagged geom g of world w cannot touch the medium (the engine's
+    ``Culled``: bounding sphere above the surface or outside the region; radius 0 never)."""
     w, g = wp.tid()
     r = tgeom_rbound[g]
     out = int(0)
@@ -144,8 +147,8 @@ def apply_kernel(
     xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
 ):  # fmt: skip
     """xfrc_applied row of tagged body k = user part + RFT wrench; a component that no longer
-    holds what was written there was assigned by the user and becomes the user part
-    (mjrft.field.ownership)."""
+    holds what was written there was assigned by the user and becomes the user part (the
+    engine's rule, docs/field.md)."""
     w, k = wp.tid()
     b = tbody_bodyid[k]
     cur = xfrc_applied[w, b]
@@ -183,20 +186,35 @@ def check_memory(nworld: int, bytes_per_world: int, device, free: int) -> None:
         )
 
 
-def _supported(gf: GranularField) -> None:
-    """Raise UnsupportedScene naming the first feature of gf's scene the Warp field lacks."""
-    m = gf.scene.material
+def _supported(scene: Scene) -> None:
+    """Raise UnsupportedScene naming the first feature of the scene the Warp field lacks."""
+    m = scene.material
     if not m.compiled or m.fourier is None:
         what = "the agarwal3d force model" if m.agarwal is not None else "a callable material"
         raise UnsupportedScene(
             f"mjrft.warp: {what} ({m.name!r}) is not supported yet; the Warp field evaluates "
             "Fourier-form media under the treers2021 model (a preset or mjrft:coefficients)"
         )
-    if gf.scene.surface.kind == core_surface.SOIL:
+    if scene.surface.kind == core_surface.SOIL:
         raise UnsupportedScene(
             "mjrft.warp: the deforming ground (mjrft:deform_cell) is not supported yet; the Warp "
             "field has fixed surfaces: flat, tilted (mjrft:surface_slope) or a height field "
             "(mjrft:surface_hfield)"
+        )
+
+
+def _check_plain(model: mujoco.MjModel) -> None:
+    """Raise ValueError if model carries the engine plugin (MuJoCo Warp's put_model fails on a
+    model with a plugin instance it cannot run)."""
+    engine = model.nplugin > 0 and any(
+        model.numeric(i).name.startswith(plugin.PREFIX) for i in range(model.nnumeric)
+    )
+    if engine:
+        raise ValueError(
+            "mjrft.warp: this model carries the engine plugin mjrft.granular, which MuJoCo Warp "
+            "cannot run (mjw.put_model refuses a model with a plugin instance): give WarpField "
+            "and mjw.put_model the plain model (mujoco.MjModel.from_xml_path(path), or the "
+            "MjSpec compiled without mjrft.load_model / mjrft.add_granular)"
         )
 
 
@@ -218,18 +236,24 @@ class WarpField:
     """The granular field for MuJoCo Warp: one scene, any number of worlds, on one device.
 
     Args:
-      model: the compiled MjModel whose ``<custom>`` describes the scene (as GranularField).
-      material, n_triangles, tolerance, dynamic: as ``GranularField``.
+      model: the compiled MjModel whose ``<custom>`` describes the scene (``mjrft:`` section),
+        without the engine plugin: the model ``mjw.put_model`` takes (MuJoCo Warp runs no C
+        plugins), e.g. ``mujoco.MjModel.from_xml_path``, not ``mjrft.load_model``.
+      material, n_triangles, tolerance, dynamic: SceneOptions on top of the MJCF's, as
+        ``mjrft.load_model`` takes them.
       device: the Warp device (default: Warp's default device).
       store_element_forces: keep each element's force per world (``element_forces_of``);
         costs nworld x elements x 24 bytes of device memory.
     Raises:
       UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
-      model, callable materials, the deforming ground. SceneError as GranularField.
+      model, callable materials, the deforming ground. SceneError as ``mjrft.load_model``.
+      ValueError for a model that carries the engine plugin.
 
-    The Warp field has no low-speed treatment (the CPU field's "stick" and mechanism
-    treatments): it is the pure model, as ``GranularField(low_speed="off")``, and it evaluates
-    elements with the CPU field's quadrature (mjrft.warp.quadrature).
+    The element tables are the engine's (``mjrft.field.plugin.setup``: the same meshing,
+    culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine).
+    The Warp field has no low-speed treatment (the engine's "stick" and mechanism treatments):
+    it is the pure model, as the engine under ``low_speed="off"``, and it evaluates elements
+    with the engine's quadrature (mjrft.warp.quadrature).
     """
 
     def __init__(
@@ -243,47 +267,52 @@ class WarpField:
         device: str | None = None,
         store_element_forces: bool = False,
     ) -> None:
-        gf = GranularField(
-            model, material, n_triangles=n_triangles, tolerance=tolerance, low_speed="off",
+        _check_plain(model)
+        options = SceneOptions(
+            material=material, n_triangles=n_triangles, tolerance=tolerance, low_speed="off",
             dynamic=dynamic,
         )  # fmt: skip
-        _supported(gf)
+        # Named before plugin.setup, which refuses some of these (callable media) in the
+        # engine's terms.
+        _supported(scene_from_model(model, **options.given()))
+        setup = plugin.setup(model, options)
         self.model = model
-        #: The CPU field of the same scene (tables, meshes, element states for comparison).
-        self.cpu = gf
+        #: The scene, its elements (body frame) and the engine's tables: the CPU engine's
+        #: under the same options, one source for both.
+        self.setup: FieldSetup = setup
         self.device = wp.get_device(device)
         self.store_element_forces = bool(store_element_forces)
-        fm = gf._tables.arrays  # the CPU field's static tables: one source for both
-        self.body_ids = np.asarray(fm.tbody_bodyid, dtype=np.int64)
-        self.nelem = int(fm.elem_area.shape[0])
-        self.ntgeom = int(fm.tgeom_geomid.shape[0])
-        self.ntbody = int(self.body_ids.shape[0])
-        elem_tgeom = np.repeat(np.arange(self.ntgeom), fm.tgeom_elemnum)
-        mat = gf.scene.material
-        region = np.asarray(fm.region, dtype=np.float64)
+        fm = setup.tables
+        self.body_ids = np.asarray(fm["tbody_bodyid"], dtype=np.int64)
+        self.nelem = int(fm["nelem"])
+        self.ntgeom = int(fm["ntgeom"])
+        self.ntbody = int(fm["ntbody"])
+        elem_tgeom = np.repeat(np.arange(self.ntgeom), fm["tgeom_elemnum"])
+        mat = setup.scene.material
+        region = np.asarray(fm["region"], dtype=np.float64).reshape(2, 3)
         dev = self.device
 
         def arr(x, dtype):
             return wp.array(np.ascontiguousarray(x), dtype=dtype, device=dev)
 
-        self._elem_pos = arr(fm.elem_pos, vec3d)
-        self._elem_normal = arr(fm.elem_normal, vec3d)
-        self._elem_area = arr(fm.elem_area, f64)
+        self._elem_pos = arr(fm["elem_pos"], vec3d)
+        self._elem_normal = arr(fm["elem_normal"], vec3d)
+        self._elem_area = arr(fm["elem_area"], f64)
         self._elem_tgeom = arr(elem_tgeom.astype(np.int32), int)
-        self._tgeom_geomid = arr(np.asarray(fm.tgeom_geomid, dtype=np.int32), int)
-        self._tgeom_rbound = arr(fm.tgeom_rbound, f64)
-        self._tgeom_tbody = arr(np.asarray(fm.tgeom_tbody, dtype=np.int32), int)
+        self._tgeom_geomid = arr(np.asarray(fm["tgeom_geomid"], dtype=np.int32), int)
+        self._tgeom_rbound = arr(fm["tgeom_rbound"], f64)
+        self._tgeom_tbody = arr(np.asarray(fm["tgeom_tbody"], dtype=np.int32), int)
         self._tbody_bodyid = arr(self.body_ids.astype(np.int32), int)
-        self._tbody_rootid = arr(np.asarray(fm.tbody_rootid, dtype=np.int32), int)
-        self._elem_reach = arr(fm.elem_reach, f64)
-        self._elem_patch = arr(fm.elem_patch, f64)
+        self._tbody_rootid = arr(np.asarray(fm["tbody_rootid"], dtype=np.int32), int)
+        self._elem_reach = arr(fm["elem_reach"], f64)
+        self._elem_patch = arr(fm["elem_patch"], f64)
         self._medium = Medium()
-        self._medium.co = arr(np.asarray(fm.coef[:18], dtype=np.float64), f64)
-        self._medium.ay = f64(fm.alpha_y)
-        self._medium.zeta = f64(fm.zeta)
+        self._medium.co = arr(np.asarray(fm["coef"][:18], dtype=np.float64), f64)
+        self._medium.ay = f64(fm["alpha_y"])
+        self._medium.zeta = f64(fm["zeta"])
         self._medium.lam_rho = f64(mat.dynamic)
-        self._medium.surface = surface.from_core(gf.scene.surface, dev)
-        self._medium.use_region = int(fm.use_region)
+        self._medium.surface = surface.from_core(setup.scene.surface, dev)
+        self._medium.use_region = int(fm["use_region"])
         self._medium.region_lo = vec3d(*region[0])
         self._medium.region_hi = vec3d(*region[1])
         self._worlds: dict[int, _Worlds] = {}
@@ -410,7 +439,7 @@ class WarpField:
         return out
 
     def element_forces_of(self, d) -> np.ndarray:
-        """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the CPU field's
+        """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the engine's
         element order (``store_element_forces=True``)."""
         if not self.store_element_forces:
             raise ValueError("element forces are kept only with store_element_forces=True")

@@ -17,8 +17,14 @@ import mujoco_warp as mjw
 import numpy as np
 import warp as wp
 
-from mjrft.envs.hexapod_sand import HIP_QPOS, HIP_QVEL, MAX_FREQUENCY, MAX_PHASE_RATE, TRIPOD_B
-from mjrft.field.plugin import load_model
+from mjrft.envs.hexapod_sand import (
+    HIP_QPOS,
+    HIP_QVEL,
+    MAX_FREQUENCY,
+    MAX_PHASE_RATE,
+    TRIPOD_B,
+    build_spec,
+)
 from mjrft.warp import surface
 from mjrft.warp.field import WarpField
 from mjrft.warp.surface import Surface
@@ -100,20 +106,17 @@ class HexapodVecEnv:
     Action: (nworld, 2) gait frequency [Hz] in [0, 4] and tripod B's phase offset [rad].
     Observation: (nworld, OBS_SIZE) float32, the columns of OBSERVATIONS (frames and units as
     ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. The field has no low-speed
-    treatment (docs/gpu.md): standing still, the robot creeps as under the CPU field's pure
-    model.
+    treatment (docs/gpu.md): standing still, the robot creeps as under the engine's pure model
+    (``low_speed="off"``).
     """
 
     def __init__(self, nworld: int, *, device: str | None = None, control_timestep: float = 0.02,
                  time_limit: float = 20.0, seed: int = 0, material=None,
                  n_triangles: int | None = None,
                  slope: tuple[float, float] | None = None) -> None:  # fmt: skip
-        from mjrft.app.simulate import models_dir
-
-        spec = mujoco.MjSpec.from_file(str(models_dir() / "hexapod_sand.xml"))
-        if slope is not None:
-            spec.add_numeric(name="mjrft:surface_slope", data=[float(v) for v in slope])
-        self.mjm = load_model(spec)
+        #: The hexapod compiled without the engine plugin (MuJoCo Warp runs no C plugins; the
+        #: field is the WarpField).
+        self.mjm = build_spec(slope=slope).compile()
         dt = float(self.mjm.opt.timestep)
         self.substeps = round(control_timestep / dt)
         if self.substeps < 1 or abs(self.substeps * dt - control_timestep) > 1e-9:
@@ -145,13 +148,13 @@ class HexapodVecEnv:
         m, d = self.mjm, self._mjd
         qpos = np.empty((self.nworld, m.nq))
         act = np.empty((self.nworld, m.na))
-        ground = self.field.cpu.surface.height
+        ground = self.field.setup.scene.surface.height
         for w in range(self.nworld):
             mujoco.mj_resetDataKeyframe(m, d, 0)
             d.qpos[HIP_QPOS] += self._rng.uniform(0.0, _TWO_PI)
             mujoco.mj_kinematics(m, d)
             low = np.inf
-            for be in self.field.cpu.bodies:
+            for be in self.field.setup.bodies:
                 rot = d.xmat[be.body].reshape(3, 3)
                 x, y, z = (d.xpos[be.body, i] + be.centroids @ rot[i] for i in range(3))
                 low = min(low, float((z - ground(x, y)).min()))

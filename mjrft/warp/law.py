@@ -2,7 +2,7 @@
 
 Treers, Cao & Stuart, RA-L 2021 on Li, Zhang & Goldman's 2D RFT (docs/design.md section 2),
 written plainly (libm tanh and log, one element per thread): a GPU thread has no vector loop
-to keep branch-free, so the polynomial exp and log of ``mjrft.core.kernel`` buy nothing here.
+to keep branch-free, so the polynomial exp and log of the engine (engine/law.cc) buy nothing here.
 Coefficients are ``Material.kernel_coefficients``: the 18 combined Fourier coefficients of
 alpha_z then alpha_x (``mjrft.core.material.combined_coefficients``), with the dynamic term's
 lambda rho_c passed on its own.
@@ -42,7 +42,7 @@ _TANH_F1_SHIFT = wp.constant(f64(math.tanh(F1_SHIFT)))
 _ATANH_F23_SHIFT = wp.constant(f64(math.atanh(F23_SHIFT)))
 _C1 = wp.constant(f64(F1_GAIN / F1_NORM))
 _C23 = wp.constant(f64(F23_GAIN / F23_NORM))
-#: In-plane speed |v23| below this counts as zero (gamma = 0), as in mjrft.core.kernel.
+#: In-plane speed |v23| below this counts as zero (gamma = 0), as in the engine (engine/law.cc).
 _VN_MIN = wp.constant(f64(1e-100))
 
 

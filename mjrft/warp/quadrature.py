@@ -1,10 +1,10 @@
-"""The surface quadrature of ``mjrft.core.kernel.body_wrench`` per element, as Warp functions.
+"""The engine's surface quadrature (engine/quadrature.h) per element, as Warp functions.
 
 The same rule (mjrft.core.quadrature, docs/accuracy.md "Quadrature"): an element is evaluated
 at its centroid unless its bounds say the free surface or the leading boundary n . v = 0 may
 cross it; then its corners decide, and a crossed element (or one within the band of the
 surface) is integrated over its submerged leading part, blended into the one-point rule.
-On a GPU each element is one thread, so the CPU kernel's chunked hold-and-triage passes
+On a GPU each element is one thread, so the engine kernel's hold-and-triage passes
 become branches of one function. Flat, tilted or height-grid surfaces (mjrft.warp.surface).
 """
 
