@@ -43,7 +43,8 @@ def states(model: mujoco.MjModel, n: int) -> np.ndarray:
 
 def timed(model, initial, steps: int, nthread: int) -> float:
     datas = [mujoco.MjData(model) for _ in range(nthread)]
-    control = np.tile(model.key_ctrl[0] if model.nkey else np.zeros(model.nu), (len(initial), steps, 1))
+    ctrl = model.key_ctrl[0] if model.nkey else np.zeros(model.nu)
+    control = np.tile(ctrl, (len(initial), steps, 1))
     t0 = time.perf_counter()
     rollout.rollout(model, datas, initial, control, nstep=steps)
     return time.perf_counter() - t0
@@ -71,7 +72,7 @@ def main() -> None:
             rate = args.rollouts * args.steps / wall
             rows.append({"scene": name, "nthread": n, "wall_s": wall, "steps_per_s": rate,
                          "speedup": base / wall})  # fmt: skip
-            print(f"{name:14s} nthread {n:2d}: {rate:10.0f} steps/s, {base / wall:4.2f}x", flush=True)
+            print(f"{name:14s} nthread {n:2d}: {rate:10.0f} steps/s, {base / wall:4.2f}x")
     OUT.parent.mkdir(exist_ok=True)
     with OUT.open("w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))

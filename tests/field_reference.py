@@ -1,7 +1,7 @@
 """Slow, plain statements of the granular field's per-pass rules: what the compiled pass is
 checked against (as MuJoCo's rollout_test.py keeps py_rollout).
 
-The production implementation is the compiled pass (``mjrft.field.passive`` and its modules).
+The production implementation is the engine's pass (engine/forward.cc and its stages).
 Here the same rules are written plainly in NumPy, one function per rule:
 
 * the low-speed treatment of a free rigid body (:func:`treat` and its parts; any wrench law);
@@ -30,6 +30,7 @@ import mjrft
 from mjrft.core import surface
 from mjrft.field.lowspeed import (
     DEFAULT_REACH,
+    HOLD_REGULARISATION,
     IMPLICIT,
     JACOBIAN_STEP,
     PURE,
@@ -38,7 +39,6 @@ from mjrft.field.lowspeed import (
     SLIP,
     STICK,
 )
-from mjrft.field.mechanism import HOLD_REGULARISATION
 
 __all__ = ["IMPLICIT", "PURE", "SLIP", "STICK"]
 
@@ -229,7 +229,7 @@ def treat(
       implicit: False keeps the pure model for slow moving bodies (step 2): the explicit
         step, which rocks a slowly sinking body (docs/stability.md, "Rocking"). The field
         always passes True; under RK4 its later stages keep the first stage's twist and
-        implicit correction (mjrft.field.rk4).
+        implicit correction (engine/rk4.cc).
       semi_implicit: True where positions advance with the step's end velocity (MuJoCo's
         Euler, implicit, implicitfast), False for RK4: the energy balance the implicit and
         slip guards use (:func:`step_work`). The field passes the model's integrator.
@@ -514,7 +514,7 @@ def body_metric(field, data, b: int) -> tuple[float, np.ndarray]:
 
 
 def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dict) -> None:
-    """The treatment of bodies in mechanisms (mjrft.field.mechanism), in place on w (nbody, 6)
+    """The treatment of bodies in mechanisms (engine/mechanism.cc), in place on w (nbody, 6)
     and decisions; st: this MjData's record (time of the last pass, the generalized force the
     field applied then, the last holds)."""
     m, dt, nv = field.model, float(field.model.opt.timestep), field.model.nv
@@ -730,7 +730,7 @@ class ReferenceField:
 
     def _guard_stages(self, st: dict, w: np.ndarray, n: int, h: float) -> None:
         """Stages 2-4: a guarded body whose stage wrench would make the step gain energy holds
-        stage 1's wrench from this stage on (mjrft.field.rk4.guard_stage)."""
+        stage 1's wrench from this stage on (engine/rk4.cc, GuardStage)."""
         for k, guard in st["guards"].items():
             if st["modes"].get(k) == "hold":
                 continue

@@ -133,7 +133,7 @@ def test_a_serial_rollout_reusing_one_data_steps_each_as_alone():
     for i in range(3):
         d = mujoco.MjData(model)
         mujoco.mj_setState(model, d, initial[i], spec)
-        for t in range(60):
+        for _ in range(60):
             mujoco.mj_step(model, d)
         end = np.zeros(initial.shape[1])
         mujoco.mj_getState(model, d, end, spec)

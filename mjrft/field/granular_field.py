@@ -308,7 +308,8 @@ class GranularField:
         self._check_data(data)
         m, d = ctypes.c_void_p(self.model._address), ctypes.c_void_p(data._address)
         address = self._lib.mjrft_state_array(m, d, self._instance, b"user_in")
-        user = np.ctypeslib.as_array((ctypes.c_double * (6 * self.model.nbody)).from_address(address))
+        row = ctypes.c_double * (6 * self.model.nbody)
+        user = np.ctypeslib.as_array(row.from_address(address))
         user[:] = 0.0 if user_xfrc is None else np.asarray(user_xfrc, dtype=float).ravel()
         self._run(data, _EXPLICIT)
         if out is None:

@@ -1,8 +1,8 @@
 """A field's static tables, built once from a compiled MjModel and its scene.
 
 The tagged geoms are meshed once (``mjrft.field.scene.geom_elements``), moved into their body's
-frame, and laid out for the compiled pass (``tables.FieldModel``): elements grouped by geom,
-geoms by body, bodies in id order.
+frame, and laid out as the engine's tables (``engine_tables``; engine/fields.h): elements grouped
+by geom, geoms by body, bodies in id order.
 """
 
 from __future__ import annotations
@@ -14,9 +14,8 @@ import numpy as np
 
 from mjrft.core import quadrature, surface
 from mjrft.core.elements import ElementSet
-from mjrft.field import layout, lowspeed
+from mjrft.field import lowspeed
 from mjrft.field.scene import Intruder, Scene, geom_elements
-from mjrft.field.tables import MODEL_RECORD, FieldModel, arena, pack
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,28 +130,6 @@ def mechanism_body(model: mujoco.MjModel, b: int) -> bool:
     return bool(dof_mask(model, b).any())
 
 
-def _live_view(address: int, dtype: type, n: int) -> np.ndarray:
-    """A NumPy view of n values at a checked address inside the MjModel (layout)."""
-    ctype = np.ctypeslib.as_ctypes_type(dtype)
-    return np.ctypeslib.as_array((ctype * n).from_address(address))
-
-
-@dataclass(eq=False)
-class StaticTables:
-    """A field's FieldModel arrays and the record the compiled pass reads (kept alive together;
-    the MjModel is referenced too, since its fields are read live)."""
-
-    model: mujoco.MjModel
-    arrays: FieldModel
-    record: np.ndarray
-
-    @property
-    def address(self) -> np.uint64:
-        """Address of the record (``passive.step``'s first argument; uint64, as the callback
-        guard passes it, so that numba compiles the pass for one signature)."""
-        return np.uint64(self.record.ctypes.data)
-
-
 GAIN_FIXED, GAIN_AFFINE = int(mujoco.mjtGain.mjGAIN_FIXED), int(mujoco.mjtGain.mjGAIN_AFFINE)
 BIAS_NONE, BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjBIAS_AFFINE)
 
@@ -167,128 +144,11 @@ def _affine_actuators(model: mujoco.MjModel) -> np.ndarray:
     )
 
 
-def _mechanism_specs(model: mujoco.MjModel, bodies, mech: np.ndarray) -> dict:
-    """tables.arena specs of the static arrays of mjrft.field.mechanism: which bodies it treats,
-    the dofs that move them, the layout of M and the actuators it brings to the state."""
-    i8, nk, nv, nu = np.int64, len(bodies), model.nv, model.nu
-    return {
-        "tbody_mech": ((nk,), i8, np.asarray(mech, dtype=i8)),
-        "tbody_dofmask": ((nk, nv), i8, _dof_masks(model, bodies)),
-        "M_rownnz": ((nv,), i8, model.M_rownnz),
-        "M_rowadr": ((nv,), i8, model.M_rowadr),
-        "M_colind": ((len(model.M_colind),), i8, model.M_colind),
-        "actuator_affine": ((nu,), i8, _affine_actuators(model)),
-        "actuator_gainaffine": ((nu,), i8, model.actuator_gaintype == GAIN_AFFINE),
-        "actuator_biasaffine": ((nu,), i8, model.actuator_biastype == BIAS_AFFINE),
-        "actuator_actadr": ((nu,), i8, model.actuator_actadr),
-        "actuator_ctrllimited": ((nu,), i8, model.actuator_ctrllimited),
-        "actuator_forcelimited": ((nu,), i8, model.actuator_forcelimited),
-    }
-
-
 def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
     out = np.zeros((len(bodies), model.nv), dtype=np.int64)
     for k, be in enumerate(bodies):
         out[k] = dof_mask(model, be.body)
     return out
-
-
-def material_coef(material, material_key: int) -> np.ndarray:
-    """Kernel coefficients of a compiled medium ((18,) zeros for a Python one)."""
-    return material.kernel_coefficients if material_key == 0 else np.zeros(18)
-
-
-def build_tables(
-    model: mujoco.MjModel,
-    scene: Scene,
-    bodies: tuple[BodyElements, ...],
-    treat: np.ndarray,
-    material_key: int,
-    mech: np.ndarray,
-) -> StaticTables:
-    """The field's static tables; treat (ntbody,) bool: bodies the free-body treatment may act
-    on; material_key: 0 for the compiled kernel, else the Python material's key; mech (ntbody,)
-    bool: bodies the mechanism treatment acts on."""
-    geoms, tbody, adr, num, rbound = [], [], [], [], []
-    geomadr, geomnum, offset = [], [], 0
-    for k, be in enumerate(bodies):
-        geomadr.append(len(geoms))
-        geomnum.append(len(be.geoms))
-        for gi, g in enumerate(be.geoms):
-            geoms.append(int(g))
-            tbody.append(k)
-            adr.append(offset + int(be.segments[gi]))
-            num.append(int(be.segments[gi + 1] - be.segments[gi]))
-            rbound.append(float(model.geom_rbound[g]))
-        offset += len(be.areas)
-    f64 = lambda x: np.ascontiguousarray(x, dtype=np.float64)  # noqa: E731
-    i8, f8 = np.int64, np.float64
-    ng, nk = len(geoms), len(bodies)
-    coef = material_coef(scene.material, material_key)
-    small = arena({  # read every pass: side by side (tables.arena)
-        "tgeom_geomid": ((ng,), i8, geoms), "tgeom_tbody": ((ng,), i8, tbody),
-        "tgeom_elemadr": ((ng,), i8, adr), "tgeom_elemnum": ((ng,), i8, num),
-        "tgeom_rbound": ((ng,), f8, rbound),
-        "tbody_bodyid": ((nk,), i8, [be.body for be in bodies]),
-        "tbody_rootid": ((nk,), i8, [model.body_rootid[be.body] for be in bodies]),
-        "tbody_geomadr": ((nk,), i8, geomadr), "tbody_geomnum": ((nk,), i8, geomnum),
-        "tbody_treat": ((nk,), i8, np.asarray(treat, dtype=i8)),
-        "region": ((2, 3), f8, np.zeros((2, 3)) if scene.region is None else scene.region),
-        "coef": (coef.shape, f8, coef),
-        **_mechanism_specs(model, bodies, mech),
-    })  # fmt: skip
-    addr = layout.model_addresses(model)
-    soil = scene.surface.kind == surface.SOIL
-    material = scene.material
-    region = scene.region
-    arrays = FieldModel(
-        **small,  # the arrays carved side by side above
-        nbody=model.nbody,
-        ngeom=model.ngeom,
-        elem_pos=f64(np.concatenate([be.centroids for be in bodies])),
-        elem_normal=f64(np.concatenate([be.normals for be in bodies])),
-        elem_area=f64(np.concatenate([be.areas for be in bodies])),
-        surface_z=float(scene.surface_z),
-        use_region=int(region is not None),
-        zeta=float(material.zeta),
-        alpha_y=float(material.alpha_y0),
-        material_key=int(material_key),
-        treat=int(scene.low_speed.on),
-        reach=float(scene.low_speed.reach),
-        jacobian_step=lowspeed.JACOBIAN_STEP,
-        rk4_hold_steps=lowspeed.RK4_HOLD_STEPS,
-        dsbl_gravity=int(mujoco.mjtDisableBit.mjDSBL_GRAVITY),
-        int_rk4=int(mujoco.mjtIntegrator.mjINT_RK4),
-        opt_timestep=_live_view(addr["opt_timestep"], np.float64, 1),
-        opt_gravity=model.opt.gravity,
-        opt_disableflags=_live_view(addr["opt_disableflags"], np.int32, 1),
-        opt_integrator=_live_view(addr["opt_integrator"], np.int32, 1),
-        body_mass=model.body_mass,
-        body_inertia=model.body_inertia,
-        body_gravcomp=model.body_gravcomp,
-        nv=model.nv,
-        nC=len(model.M_colind),
-        mech=int(np.any(mech)),
-        nu=model.nu,
-        nJmom=model.nJmom,
-        dsbl_actuation=int(mujoco.mjtDisableBit.mjDSBL_ACTUATION),
-        dsbl_clampctrl=int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL),
-        actuator_gainprm=model.actuator_gainprm,
-        actuator_biasprm=model.actuator_biasprm,
-        actuator_ctrlrange=model.actuator_ctrlrange,
-        actuator_forcerange=model.actuator_forcerange,
-        surface_prm=f64(scene.surface.prm),
-        surface_grid=f64(scene.surface.grid),
-        soil=int(soil),
-        nsoil=surface.soil_block(*scene.surface.grid.shape) if soil else 1,
-        elem_vert=f64(np.concatenate([be.corners for be in bodies]) if soil else np.zeros((1, 9))),
-        elem_reach=f64(np.concatenate([be.quadrature[0] for be in bodies])),
-        elem_patch=f64(np.concatenate([be.quadrature[1] for be in bodies])),
-    )
-    nrow, ncol = scene.surface.grid.shape
-    sizes = {"nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies),
-             "surface_nrow": nrow, "surface_ncol": ncol, "ncoef": len(coef)}  # fmt: skip
-    return StaticTables(model, arrays, pack(MODEL_RECORD, (arrays,), sizes))
 
 
 def engine_tables(

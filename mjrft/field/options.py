@@ -56,4 +56,5 @@ class SceneOptions:
 
     def given(self) -> dict[str, Any]:
         """The options that override the MJCF (not None), by name."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        return {k: v for k, v in values.items() if v is not None}

@@ -20,12 +20,11 @@ import weakref
 import mujoco
 import numpy as np
 
+from mjrft.core.engine import EngineError, Layout, layout  # noqa: F401 (re-exported)
+from mjrft.core.engine import library as _library
 from mjrft.field.model import FieldSetup, field_setup
 from mjrft.field.options import SceneOptions
 from mjrft.field.scene import ENGINE_PREFIX, SceneError, scene_from_model
-
-from mjrft.core.engine import EngineError, Layout, layout  # noqa: F401 (re-exported)
-from mjrft.core.engine import library as _library
 
 PLUGIN = "mjrft.granular"
 PREFIX = ENGINE_PREFIX
