@@ -55,7 +55,6 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
-    walk(None, 1)  # load the compiled code
     runs = {case: [walk(*case) for _ in range(args.repeats)] for case in CASES}
     base = statistics.median(r["wall_s"] for r in runs[CASES[0]])
     rows = []

@@ -1,11 +1,11 @@
-"""Field overhead: mj_step with the installed field vs a plain mj_step of the same model.
+"""Field overhead: mj_step of a model with the engine plugin vs a plain mj_step of the same MJCF.
 
 Run: python benchmarks/field_overhead.py [--triangles N]
 1. models/ellipsoid_pitch.xml with the ellipsoid at N triangles (default 2000), at three states:
    lifted clear of the medium (every intruder above the surface), tip in (t = 1 s) and deep
-   (t = 10 s); medians over 15 repeats of 2000 steps, plain and field alternating; the ratio is
-   the median of the back-to-back pairs' ratios.
-2. Real-time factor of each rig at dt = 1 ms (simulated s per wall s, field installed, no
+   (t = 10 s); medians over 15 repeats of 2000 steps, plain (the MJCF compiled without the
+   plugin) and field alternating; the ratio is the median of the back-to-back pairs' ratios.
+2. Real-time factor of each rig at dt = 1 ms (simulated s per wall s, with the field, no
    recording).
 3. Evaluated and acting fractions over each rig's run: triangles handed to the kernel (geoms not
    culled by their bounding sphere) and triangles that felt a force, per field evaluation,
@@ -16,7 +16,6 @@ Writes benchmarks/results/field_overhead.csv and field_fractions.csv.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
 import time
 from pathlib import Path
@@ -37,12 +36,11 @@ RIG_DURATIONS = {
 }
 
 
-def state_at(model, fld, t, lift=0.0) -> mujoco.MjData:
+def state_at(model, t, lift=0.0) -> mujoco.MjData:
     d = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, d, 0)
-    with fld.installed():
-        while d.time < t:
-            mujoco.mj_step(model, d)
+    while d.time < t:
+        mujoco.mj_step(model, d)
     # The slider's integrated-velocity servo keeps its target position in act: lift both.
     d.qpos[model.joint("descent").qposadr[0]] += lift
     d.act[model.actuator("descent").actadr[0]] += lift
@@ -57,31 +55,35 @@ def clone(model, d) -> mujoco.MjData:
     return e
 
 
-def _run(model, d0, fld, n) -> float:
-    """Seconds per mj_step over n steps from state d0, with the field installed if fld is given."""
+def _run(model, d0, n) -> tuple[float, mujoco.MjData]:
+    """Seconds per mj_step over n steps of model from state d0, and the MjData stepped."""
     d = clone(model, d0)
-    with fld.installed() if fld is not None else contextlib.nullcontext():
-        mujoco.mj_step(model, d)  # with the field, the first pass registers this MjData (Python)
-        t0 = time.perf_counter()
-        for _ in range(n):
-            mujoco.mj_step(model, d)
-        return (time.perf_counter() - t0) / n
+    mujoco.mj_step(model, d)  # one untimed step, as for a model that has just been made
+    t0 = time.perf_counter()
+    for _ in range(n):
+        mujoco.mj_step(model, d)
+    return (time.perf_counter() - t0) / n, d
 
 
-def time_pairs(model, d0, fld, n=2000, repeats=15) -> tuple[float, float, float]:
-    """Median s per plain mj_step, per mj_step with the field, and median ratio of the pairs.
+def time_pairs(plain_model, model, fld, d0, n=2000, repeats=15):
+    """Median s per mj_step of plain_model (no plugin) and of model (the plugin's), the median
+    ratio of the pairs, and fld's work counters summed over the field runs (``stats_of``).
 
     Plain and field runs alternate, and each ratio is taken within a pair measured back to back,
     so that a slow spell of this shared machine lands on both sides of a ratio.
     """
     plain, field, ratio = [], [], []
+    stats = dict.fromkeys(("calls", "evaluated", "acting"), 0)
     for _ in range(repeats):
-        p = _run(model, d0, None, n)
-        f = _run(model, d0, fld, n)
+        p, _ = _run(plain_model, d0, n)
+        f, d = _run(model, d0, n)
         plain.append(p)
         field.append(f)
         ratio.append(f / p)
-    return float(np.median(plain)), float(np.median(field)), float(np.median(ratio))
+        for k, v in fld.stats_of(d).items():
+            if k in stats:
+                stats[k] += v
+    return float(np.median(plain)), float(np.median(field)), float(np.median(ratio)), stats
 
 
 def main() -> None:
@@ -89,25 +91,24 @@ def main() -> None:
     ap.add_argument("--triangles", type=int, default=2000)
     args = ap.parse_args()
     OUT.mkdir(exist_ok=True)
-    model = simulate.load_model(MODELS / "ellipsoid_pitch.xml")
-    fld = GranularField(model, n_triangles=args.triangles)
+    model = simulate.load_model(MODELS / "ellipsoid_pitch.xml", n_triangles=args.triangles)
+    plain_model = mujoco.MjModel.from_xml_path(str(MODELS / "ellipsoid_pitch.xml"))
+    fld = GranularField(model)
     print(f"ellipsoid_pitch.xml, {fld.n_elements} triangles on the ellipsoid, dt = 1 ms, Euler")
     rows = []
     for label, t, lift in (("lifted clear", 0.0, 0.05), ("tip in (t=1 s)", 1.0, 0.0),
                            ("deep (t=10 s)", 10.0, 0.0)):  # fmt: skip
-        d0 = state_at(model, fld, t, lift)
-        s0 = fld.stats
-        plain, with_field, ratio = time_pairs(model, d0, fld)
-        s1 = fld.stats
-        calls = max(1, s1["calls"] - s0["calls"])
+        d0 = state_at(model, t, lift)
+        plain, with_field, ratio, s = time_pairs(plain_model, model, fld, d0)
+        calls = max(1, s["calls"])
         rows.append(
             {
                 "state": label,
                 "plain_us": 1e6 * plain,
                 "field_us": 1e6 * with_field,
                 "ratio": ratio,
-                "acting_fraction": (s1["acting"] - s0["acting"]) / calls / fld.n_elements,
-                "evaluated_fraction": (s1["evaluated"] - s0["evaluated"]) / calls / fld.n_elements,
+                "acting_fraction": s["acting"] / calls / fld.n_elements,
+                "evaluated_fraction": s["evaluated"] / calls / fld.n_elements,
             }
         )
         r = rows[-1]
@@ -121,7 +122,7 @@ def main() -> None:
         w.writeheader()
         w.writerows(rows)
 
-    print("rig runs (field installed, default triangles, no recording):")
+    print("rig runs (with the field, default triangles, no recording):")
     frows = []
     for name, duration in RIG_DURATIONS.items():
         m = simulate.load_model(MODELS / f"{name}.xml")
@@ -129,13 +130,12 @@ def main() -> None:
         d = mujoco.MjData(m)
         mujoco.mj_resetDataKeyframe(m, d, 0)
         n = round(duration / m.opt.timestep)
-        with f.installed():
+        mujoco.mj_step(m, d)
+        t0 = time.perf_counter()
+        for _ in range(n):
             mujoco.mj_step(m, d)
-            t0 = time.perf_counter()
-            for _ in range(n):
-                mujoco.mj_step(m, d)
-            wall = time.perf_counter() - t0
-        s = f.stats
+        wall = time.perf_counter() - t0
+        s = f.stats_of(d)
         frows.append(
             {
                 "rig": name,

@@ -72,8 +72,8 @@ def rig_forces(material: Material, shape, motion) -> np.ndarray:
 
 def hexapod(material: Material, duration: float = 3.0) -> tuple[float, float]:
     """(forward speed [m/s], largest vertical RFT force on one body [N]) of the hexapod."""
-    model = simulate.load_model(ROOT / "models" / "hexapod_sand.xml")
-    fld = GranularField(model, material=material)
+    model = simulate.load_model(ROOT / "models" / "hexapod_sand.xml", material=material)
+    fld = GranularField(model)
     peak = [0.0]
 
     def observe(step, time, data):

@@ -3,7 +3,8 @@
 What it does: for every combination of shape (sphere, mole-crab ellipsoid) x mass (1 g ... 100 kg,
 size scaled at constant density) x timestep x integrator x low-speed treatment, it builds a free
 body tagged for the granular field, releases it at rest with its lowest point on the free surface
-(z = 0), simulates it with ``GranularField(model).installed()`` and records how it settles:
+(z = 0), simulates it on a model with the engine plugin (``mjrft.load_model``) and records how
+it settles:
 
 * ``d_qs``: the quasi-static equilibrium depth, the root (``scipy.optimize.brentq``) of
   F_z(d) = m g, with F_z the vertical RFT force on the body moving straight down at depth d
@@ -22,8 +23,8 @@ body tagged for the granular field, releases it at rest with its lowest point on
   of the linear or angular velocity), swing of the vertical and size of the lateral RFT force
   over the last second, maximum tilt, energy gained over a step against the stability tolerance
   (net of the work the lowering force does over that step: the criterion is about the medium,
-  and a user force is not passive), and failures (exceptions such as the field's
-  FloatingPointError, NaN, MuJoCo resets).
+  and a user force is not passive), and failures (exceptions such as the engine's
+  ``mujoco.FatalError`` on a non-finite state, NaN, MuJoCo resets).
 
 Frames and units: SI throughout (m, s, kg, N, J). World z is up, the free surface is z = 0 and
 the depth of the body is the depth of its lowest point, d = -(z_c - h(R)), with z_c the height
@@ -58,6 +59,7 @@ import mujoco
 import numpy as np
 from scipy.optimize import brentq
 
+import mjrft
 from mjrft import GranularField
 from mjrft.app import metadata
 from mjrft.body import body_wrench, quat_to_mat, trajectory_wrenches
@@ -75,7 +77,7 @@ INTEGRATORS: dict[str, int] = {
     "implicitfast": int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST),
     "RK4": int(mujoco.mjtIntegrator.mjINT_RK4),
 }
-#: The low-speed treatment axis: name -> extra keyword arguments of ``GranularField``
+#: The low-speed treatment axis: name -> scene options (``mjrft.SceneOptions``) of the model
 #: (``mjrft.lowspeed``); everything downstream (runs, CSV, map, table) iterates over this dict.
 TREATMENTS: dict[str, dict[str, Any]] = {
     "off": {"low_speed": "off"},
@@ -345,11 +347,11 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
         n_tri=0, integrator=case.integrator, dt_s=case.dt, settle_s=case.settle_s,
         hold_s=case.hold_s,
     )  # fmt: skip
-    model = mujoco.MjModel.from_xml_string(scene_xml(case.shape, case.mass, n_tri))
+    model = mjrft.load_model(scene_xml(case.shape, case.mass, n_tri), **TREATMENTS[case.treatment])
     model.opt.timestep = case.dt
     model.opt.integrator = INTEGRATORS[case.integrator]
     body = model.body("body").id
-    field = GranularField(model, **TREATMENTS[case.treatment])
+    field = GranularField(model)
     res.n_tri = field.n_elements
     weight = float(model.body_mass[body]) * -float(model.opt.gravity[2])
     key = (case.shape, case.mass)
@@ -375,22 +377,22 @@ def run_case(case: Case, n_tri: int, ref_cache: dict[tuple[str, float], Referenc
     t0 = time.perf_counter()
     try:
         n_ramp = round(ramp_s / case.dt)
-        with field.installed():
-            for i in range(1, n + 1):
-                if n_ramp and i <= n_ramp + 1:  # assign the whole row (ownership protocol)
-                    data.xfrc_applied[body] = 0.0
-                    s = min(1.0, (i - 1) / n_ramp)
-                    data.xfrc_applied[body, 2] = weight * 0.5 * (1.0 + math.cos(math.pi * s))
-                    user_f[i, 2] = data.xfrc_applied[body, 2]
-                mujoco.mj_step(model, data)
-                qpos[i], qvel[i], wrench[i] = data.qpos, data.qvel, field.last_wrench[body]
-                if not np.all(np.isfinite(qvel[i])):
-                    raise FloatingPointError(f"non-finite state at t = {data.time:.6g} s")
-                if abs(qvel[i, 2]) > BLOWUP_SPEED:
-                    raise FloatingPointError(f"|v_z| > {BLOWUP_SPEED} m/s at t = {data.time:.6g}")
-                if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number:
-                    raise FloatingPointError("MuJoCo reset the state (bad qacc)")
-                done = i  # steps 0..done are valid
+        rft = field.wrench_of(data)  # a view of data's last pass, updated by every step
+        for i in range(1, n + 1):
+            if n_ramp and i <= n_ramp + 1:  # assign the whole row (ownership protocol)
+                data.xfrc_applied[body] = 0.0
+                s = min(1.0, (i - 1) / n_ramp)
+                data.xfrc_applied[body, 2] = weight * 0.5 * (1.0 + math.cos(math.pi * s))
+                user_f[i, 2] = data.xfrc_applied[body, 2]
+            mujoco.mj_step(model, data)
+            qpos[i], qvel[i], wrench[i] = data.qpos, data.qvel, rft[body]
+            if not np.all(np.isfinite(qvel[i])):
+                raise FloatingPointError(f"non-finite state at t = {data.time:.6g} s")
+            if abs(qvel[i, 2]) > BLOWUP_SPEED:
+                raise FloatingPointError(f"|v_z| > {BLOWUP_SPEED} m/s at t = {data.time:.6g}")
+            if data.warning[int(mujoco.mjtWarning.mjWARN_BADQACC)].number:
+                raise FloatingPointError("MuJoCo reset the state (bad qacc)")
+            done = i  # steps 0..done are valid
     except Exception as exc:  # record any failure: that is what the map is for
         res.status, res.failure = "fail", f"{type(exc).__name__}: {exc}".replace("\n", " ")
         res.t_fail_s = (done + 1) * case.dt
@@ -418,7 +420,7 @@ def measure(
       size: geom size [m] (sphere radius, or ellipsoid semi-axes along body x, y, z).
       qpos, qvel: (T + 1, 7) and (T + 1, 6) free-joint state after each step (row 0: initial).
       wrench: (T + 1, 6) RFT force [N] and torque [N m] on the body, world frame, of the last
-        forward pass of each step (``field.last_wrench``; for RK4 its last stage).
+        forward pass of each step (``field.wrench_of(data)``; for RK4 its last stage).
       user_f: (T + 1, 3) user force [N] at the CoM during the step ending at each row (the
         lowering), or None; its work is taken off each step's energy gain.
     """

@@ -4,16 +4,16 @@ Run: python benchmarks/standing.py [--duration 10] [--timesteps 0.5 1 2] [--low-
      [--walk 0.5 1 2 3] [--repeats 5]
 For each low-speed mode, timestep [ms] and integrator (Euler, implicitfast, RK4), loads
 models/hexapod_sand.xml at its keyframe with every hip's gait rate set to zero (ctrl = 0 and
-qvel = 0: each intvelocity servo holds its keyframe angle), installs the field and steps for
---duration s. Prints, over the last half of the run: the torso's horizontal drift and its
-sinking [mm], the median step-to-step change of the total RFT vertical force on the robot as a
-fraction of its weight, the RFT vertical force over the weight at the end, and the wall time per
-step (median of --repeats runs, the modes interleaved, with the median ratio of the first mode's
-time to each mode's in the same repeat). Writes results/standing.csv. The numbers the low-speed
-treatment of mechanisms must hold: drift < 0.1 mm, force change < 1 % of the weight
-(docs/stability.md, "Mechanisms"). With --walk, also the alternating-tripod gait at each
-frequency [Hz] (1 ms, Euler): its forward speed over 3 cycles after a transient of max(1 s, one
-cycle), and the wall time per step.
+qvel = 0: each intvelocity servo holds its keyframe angle) with the field (the engine plugin,
+``mjrft.load_model``) and steps for --duration s. Prints, over the last half of the run: the
+torso's horizontal drift and its sinking [mm], the median step-to-step change of the total RFT
+vertical force on the robot as a fraction of its weight, the RFT vertical force over the weight
+at the end, and the wall time per step (median of --repeats runs, the modes interleaved, with
+the median ratio of the first mode's time to each mode's in the same repeat). Writes
+results/standing.csv. The numbers the low-speed treatment of mechanisms must hold: drift < 0.1
+mm, force change < 1 % of the weight (docs/stability.md, "Mechanisms"). With --walk, also the
+alternating-tripod gait at each frequency [Hz] (1 ms, Euler): its forward speed over 3 cycles
+after a transient of max(1 s, one cycle), and the wall time per step.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ sys.path.insert(0, str(ROOT))  # run from a checkout without installing
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+import mjrft  # noqa: E402
 from mjrft.app import metadata  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
 
@@ -42,10 +43,11 @@ INTEGRATORS = {
 }
 
 
-def hexapod(gait_hz: float, timestep: float = 1e-3, integrator: str = "euler"):
-    """(model, data): the hexapod at its keyframe pose, every hip turning at gait_hz [Hz]
-    (0: the gait stopped, each intvelocity servo holding its keyframe angle)."""
-    model = mujoco.MjModel.from_xml_path(str(ROOT / "models" / "hexapod_sand.xml"))
+def hexapod(gait_hz: float, timestep: float = 1e-3, integrator: str = "euler", low_speed=None):
+    """(model, field, data): the hexapod at its keyframe pose under the low-speed mode low_speed
+    (None: the model's), every hip turning at gait_hz [Hz] (0: the gait stopped, each
+    intvelocity servo holding its keyframe angle)."""
+    model = mjrft.load_model(ROOT / "models" / "hexapod_sand.xml", low_speed=low_speed)
     model.opt.timestep = timestep
     model.opt.integrator = INTEGRATORS[integrator]
     data = mujoco.MjData(model)
@@ -53,13 +55,12 @@ def hexapod(gait_hz: float, timestep: float = 1e-3, integrator: str = "euler"):
     data.ctrl[:] = 2 * np.pi * gait_hz  # every hip's rate; the keyframe sets the phases
     data.qvel[:] = 0.0
     data.qvel[6:] = 2 * np.pi * gait_hz
-    return model, data
+    return model, GranularField(model), data
 
 
 def stand(timestep: float, integrator: str, duration: float, low_speed: str) -> dict:
     """One standing run; the figures over its last half (see the module docstring)."""
-    model, data = hexapod(0.0, timestep, integrator)
-    fld = GranularField(model, low_speed=low_speed)
+    model, fld, data = hexapod(0.0, timestep, integrator, low_speed)
     torso = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "torso")
     weight = float(model.body_subtreemass[torso]) * -model.opt.gravity[2]
     n = round(duration / timestep)
@@ -67,14 +68,13 @@ def stand(timestep: float, integrator: str, duration: float, low_speed: str) -> 
     fz = np.empty(n + 1)
     pos[0] = data.xpos[torso]
     fz[0] = 0.0
-    wrench = fld.wrench_of(data)
-    with fld.installed():
-        t0 = time.perf_counter()
-        for i in range(1, n + 1):
-            mujoco.mj_step(model, data)
-            pos[i] = data.xpos[torso]
-            fz[i] = wrench[fld.body_ids, 2].sum()
-        wall = time.perf_counter() - t0
+    wrench = fld.wrench_of(data)  # a view, updated by every step
+    t0 = time.perf_counter()
+    for i in range(1, n + 1):
+        mujoco.mj_step(model, data)
+        pos[i] = data.xpos[torso]
+        fz[i] = wrench[fld.body_ids, 2].sum()
+    wall = time.perf_counter() - t0
     half = n // 2
     return {
         "low_speed": low_speed,
@@ -90,17 +90,15 @@ def stand(timestep: float, integrator: str, duration: float, low_speed: str) -> 
 
 def walk(frequency: float, low_speed: str) -> dict:
     """Forward speed [m/s] and wall time per step of the gait at `frequency` [Hz]."""
-    model, data = hexapod(frequency)
-    fld = GranularField(model, low_speed=low_speed)
+    model, _, data = hexapod(frequency, low_speed=low_speed)
     dt = model.opt.timestep
-    with fld.installed():
-        for _ in range(round(max(1.0, 1.0 / frequency) / dt)):
-            mujoco.mj_step(model, data)
-        x0, n = float(data.qpos[0]), round(3.0 / frequency / dt)
-        t0 = time.perf_counter()
-        for _ in range(n):
-            mujoco.mj_step(model, data)
-        wall = time.perf_counter() - t0
+    for _ in range(round(max(1.0, 1.0 / frequency) / dt)):
+        mujoco.mj_step(model, data)
+    x0, n = float(data.qpos[0]), round(3.0 / frequency / dt)
+    t0 = time.perf_counter()
+    for _ in range(n):
+        mujoco.mj_step(model, data)
+    wall = time.perf_counter() - t0
     return {"speed": (float(data.qpos[0]) - x0) / (n * dt), "us_per_step": 1e6 * wall / n}
 
 

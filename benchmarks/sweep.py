@@ -4,9 +4,9 @@ Run: python benchmarks/sweep.py [--repeats R] [--duration S] [--workers N] [--no
 
 1. A 16-run study of the root rig (studies/root_circumnutation.toml's tip angles 5-30 deg x
    nutation rates 0-30 deg/s, each run `--duration` simulated seconds, about 1.1 s of wall time
-   at the default 16 s): a serial loop of ``mjrft.sweep.executor.execute`` in this (warm)
-   process, then ``run_study`` on the local backend (pool start-up included), `--repeats`
-   pairs; and, unless --no-ray, ``run_study`` on a new local Ray instance (`ray_init_s` is its
+   at the default 16 s): a serial loop of ``mjrft.sweep.executor.execute`` in this process,
+   then ``run_study`` on the local backend (pool start-up included), `--repeats` pairs; and,
+   unless --no-ray, ``run_study`` on a new local Ray instance (`ray_init_s` is its
    start, not included in `wall_s`).
 2. Per-run overhead: a 32-run study of runs that do almost nothing (models/sphere_drop.xml, one
    step each) on each backend: overhead per run = wall x workers / runs - the serial time per
@@ -30,7 +30,6 @@ import time
 from pathlib import Path
 
 from mjrft.app.metadata import machine
-from mjrft.field.warmup import warm_up
 from mjrft.sweep import Study, run_study
 from mjrft.sweep.executor import execute
 
@@ -149,7 +148,6 @@ def main() -> None:
     ap.add_argument("--no-ray", action="store_true")
     ap.add_argument("--only", choices=("root16", "tiny32"), default=None, help="one study")
     args = ap.parse_args()
-    warm_up()
     m = machine()
     print(f"{m['cpu']}, {m['cpu_count']} cores; {args.workers} workers")
     rows = []

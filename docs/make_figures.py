@@ -33,8 +33,8 @@ RIGS = (
 
 def make_figure(name: str, duration: float, record_every: int, caption: str) -> Path:
     """Run one rig and write docs/<name>.png; returns its path."""
-    model = simulate.load_model(ROOT / "models" / f"{name}.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(ROOT / "models" / f"{name}.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     _, rec = simulate.run(model, duration, fld=fld, record_every=record_every)
     title = (
         f"models/{name}.xml: {caption}, {duration:g} s "

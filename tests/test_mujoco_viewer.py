@@ -14,9 +14,8 @@ def settled_ellipsoid(steps=1500):
     model = simulate.load_model("ellipsoid_pitch")
     fld = GranularField(model)
     data = simulate.reset_data(model)
-    with fld.installed():
-        for _ in range(steps):
-            mujoco.mj_step(model, data)
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
     return model, fld, data
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+import mjrft
 from mjrft import GranularField
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,14 +26,13 @@ def test_readme_is_a_front_door():
 
 def test_readme_mjcf_scene_compiles_and_runs():
     (xml,) = fenced("xml")
-    model = mujoco.MjModel.from_xml_string(xml)
+    model = mjrft.load_model(xml)
     field = GranularField(model)
     assert {be.name for be in field.bodies} == {"ball", "foot"}
     assert field.region is not None and field.surface_z == 0.0
     data = mujoco.MjData(model)
-    with field.installed():
-        for _ in range(300):
-            mujoco.mj_step(model, data)
+    for _ in range(300):
+        mujoco.mj_step(model, data)
     ball = model.body("ball").id
     assert data.xpos[ball, 2] < 0.011  # it fell into the medium
     assert np.all(np.isfinite(data.qpos))

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import warnings
 
-import mujoco
 import pytest
 
+import mjrft
 from mjrft.app import regime, simulate
 
 DROP = """<mujoco><option timestep="0.0005"/>
@@ -21,7 +21,7 @@ def test_a_sphere_dropped_from_5_cm_leaves_the_quasi_static_regime():
     """Falling h = 5 cm, a 1 cm sphere enters at sqrt(2 g h): Fr = 2 h / L = 5 (L its
     diameter); the first check in the medium sees about that, and the run warns once."""
     h, radius = 0.05, 0.01
-    m = mujoco.MjModel.from_xml_string(DROP.format(z=radius + h))
+    m = mjrft.load_model(DROP.format(z=radius + h))
     with pytest.warns(regime.QuasiStaticWarning, match="'ball'.*Froude number") as caught:
         _, rec = simulate.run(m, 0.2, record_every=10)
     assert len(caught) == 1

@@ -18,11 +18,11 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 def test_a_diverging_run_stops_naming_the_time_and_keeps_the_rows_before():
     """The ellipsoid rig is unstable at 5 ms (with or without the field): MuJoCo warns and
     resets the state; the run must stop there instead of recording a different simulation."""
-    model = simulate.load_model(str(MODELS / "ellipsoid_pitch.xml"))
+    model = simulate.load_model(str(MODELS / "ellipsoid_pitch.xml"), n_triangles=200)
     simulate.configure(model, 0.005, None)
-    rec = simulate.new_recording(model, simulate.GranularField(model, n_triangles=200))
+    rec = simulate.new_recording(model, simulate.GranularField(model))
     with pytest.raises(simulate.RunDiverged, match=r"diverged at t = .* s \(step \d+\).*QACC") as e:
-        simulate.run(model, 3.0, recording=rec, fld=simulate.GranularField(model, n_triangles=200))
+        simulate.run(model, 3.0, recording=rec, fld=simulate.GranularField(model))
     t = rec.array()[:, 0]
     assert len(t) > 10 and np.all(np.diff(t) > 0)  # time never runs backwards
     assert t[-1] < e.value.time  # nothing recorded from the diverged step on

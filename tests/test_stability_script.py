@@ -29,9 +29,9 @@ def stability():
 
 
 def _fly(stability, integrator, lift=2.0, steps=40):
-    """A 10 g ellipsoid 1 m above the surface (the field is not installed: no medium), pushed up
-    by lift x its weight (world z) and sideways, no spin. Returns model, qpos, qvel, user force
-    per step, the constant total force [N] and the body's mass [kg]."""
+    """A 10 g ellipsoid 1 m above the surface (a model without the engine plugin: no medium),
+    pushed up by lift x its weight (world z) and sideways, no spin. Returns model, qpos, qvel,
+    user force per step, the constant total force [N] and the body's mass [kg]."""
     m = mujoco.MjModel.from_xml_string(stability.scene_xml("ellipsoid", 0.01, 60))
     m.opt.timestep, m.opt.integrator = 0.005, stability.INTEGRATORS[integrator]
     d = mujoco.MjData(m)

@@ -26,7 +26,7 @@ import pytest
 rr = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from mjrft import simulate, viz  # noqa: E402
+from mjrft import SceneOptions, simulate, viz  # noqa: E402
 from mjrft.app import cli, report, view  # noqa: E402
 from mjrft.core.material import Material  # noqa: E402
 from mjrft.field import GranularField  # noqa: E402
@@ -64,29 +64,28 @@ def timelines(path):
 def resimulate(model, steps, integrator_rk4):
     """Independent run of `model` (same start, same stepping as simulate.run with record_every=1)
     returning, for each step in `steps`, the field's view of the state after that many steps."""
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    fld = GranularField(model)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, 0)
     wanted, out = set(steps), {}
     last = max(steps)
-    with fld.installed():
-        for i in range(last + 1):
-            if integrator_rk4:
-                mujoco.mj_forward(model, data)  # simulate.run records every step: a forward each
-            if i in wanted:
-                probe = copy.copy(data)
-                mujoco.mj_forward(model, probe)
-                out[i] = {
-                    "time": probe.time,
-                    "xpos": probe.xpos.copy(),
-                    "xmat": probe.xmat.copy(),
-                    "xipos": probe.xipos.copy(),
-                    "sensordata": probe.sensordata.copy(),
-                    "wrench": fld.wrench(probe).copy(),
-                    "states": {st.body: st for st in fld.element_states(probe)},
-                }
-            if i < last:
-                mujoco.mj_step(model, data)
+    for i in range(last + 1):
+        if integrator_rk4:
+            mujoco.mj_forward(model, data)  # simulate.run records every step: a forward each
+        if i in wanted:
+            probe = copy.copy(data)
+            mujoco.mj_forward(model, probe)
+            out[i] = {
+                "time": probe.time,
+                "xpos": probe.xpos.copy(),
+                "xmat": probe.xmat.copy(),
+                "xipos": probe.xipos.copy(),
+                "sensordata": probe.sensordata.copy(),
+                "wrench": fld.wrench(probe).copy(),
+                "states": {st.body: st for st in fld.element_states(probe)},
+            }
+        if i < last:
+            mujoco.mj_step(model, data)
     return fld, out
 
 
@@ -94,9 +93,9 @@ def resimulate(model, steps, integrator_rk4):
 def root_recording(request, tmp_path_factory):
     """0.3 s of the root rig (in the medium from the start, 2976-triangle mesh) recorded every
     25 steps with at most 40 arrows per frame."""
-    model = simulate.load_model(MODELS / "root_circumnutation.xml")
+    model = simulate.load_model(MODELS / "root_circumnutation.xml", n_triangles=TRIANGLES)
     simulate.configure(model, None, request.param)
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    fld = GranularField(model)
     path = tmp_path_factory.mktemp("rrd") / f"root_{request.param}.rrd"
     with viz.Recorder(model, fld, path, every=EVERY, max_arrows=MAX_ARROWS) as recorder:
         simulate.run(
@@ -301,8 +300,8 @@ def resolved(path, entity, component, step):
 def sphere_recording(tmp_path_factory):
     """0.1 s of the sphere drop, a frame every 5 steps: out of the medium for steps 0-15, in it
     from step 20 on."""
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     path = tmp_path_factory.mktemp("rrd") / "sphere.rrd"
     viz.record(model, 0.1, path, fld=fld, every=5, max_arrows=MAX_ARROWS)
     fz = {r["step"]: r["Scalars:scalars"][0] for r in temporal(path, "rft/sphere/force/z")}
@@ -390,14 +389,14 @@ def test_recording_is_complete_when_the_run_raises(tmp_path):
         if fraction >= 0.25:
             raise RuntimeError("synthetic failure mid-run")
 
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
     path = tmp_path / "failed.rrd"
     with pytest.raises(RuntimeError, match="synthetic"):
         viz.record(
             model,
             0.2,
             path,
-            fld=GranularField(model, n_triangles=TRIANGLES),
+            fld=GranularField(model),
             every=5,
             progress=failing_progress,
         )
@@ -450,8 +449,8 @@ def test_interrupt_anywhere_in_log_state_keeps_exactly_the_completed_frames(
     """A real SIGINT (Ctrl-C) raised on the k-th call of a function log_state uses; close() in
     the `finally` then writes exactly the frames whose logging completed, each once."""
     monkeypatch.setattr(viz, "FLUSH_FRAMES", 3)
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     path = tmp_path / f"{where}_{k}.rrd"
     recorder = viz.Recorder(model, fld, path, every=5, max_arrows=MAX_ARROWS)
     calls = {"n": 0}
@@ -478,13 +477,12 @@ def test_interrupt_anywhere_in_log_state_keeps_exactly_the_completed_frames(
     completed = []
     with pytest.raises(KeyboardInterrupt):
         try:
-            with fld.installed():
-                for step in range(FRAME_STEPS[-1] + 1):
-                    if step in FRAME_STEPS:
-                        mujoco.mj_forward(model, data)
-                        recorder.log_state(step, data.time, data)
-                        completed.append(step)
-                    mujoco.mj_step(model, data)
+            for step in range(FRAME_STEPS[-1] + 1):
+                if step in FRAME_STEPS:
+                    mujoco.mj_forward(model, data)
+                    recorder.log_state(step, data.time, data)
+                    completed.append(step)
+                mujoco.mj_step(model, data)
         finally:
             recorder.close()
     assert signal.getsignal(signal.SIGINT) is handler  # the recorder's hold is undone
@@ -501,8 +499,8 @@ def test_interrupt_anywhere_in_log_state_keeps_exactly_the_completed_frames(
 
 
 def test_close_twice_and_log_after_close(tmp_path):
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     recorder = viz.Recorder(model, fld, tmp_path / "empty.rrd")
     recorder.close()
     recorder.close()
@@ -562,7 +560,8 @@ def test_no_recording_without_rrd(tmp_path):
 
 def test_demo_rig_writes_demo_rrd(tmp_path):
     rrd = tmp_path / cli.DEMO_RRD
-    fld, rec = cli._demo_rig(cli.DEMO_RRD_RIG, 0.05, Material.preset("glass_beads"), 300, rrd)
+    options = SceneOptions(material=Material.preset("glass_beads"), n_triangles=300)
+    fld, rec = cli._demo_rig(cli.DEMO_RRD_RIG, 0.05, options, rrd)
     RrdReader(str(rrd)).store()
     assert steps_of(rrd, f"world/bodies/{fld.bodies[0].name}") == [0, 10, 20, 30, 40, 50]
     assert len(rec.rows) == 6
@@ -651,8 +650,8 @@ def test_recorder_is_headless_and_leaves_rerun_global_state_alone(tmp_path, monk
         monkeypatch.delenv(var, raising=False)
     before_global = rr.get_global_data_recording()
     children_before = _children()
-    model = simulate.load_model(MODELS / "plate_rig.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "plate_rig.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     viz.record(model, 0.02, tmp_path / "plate.rrd", fld=fld, every=5)
     assert rr.get_global_data_recording() is before_global
     assert _children() == children_before  # no viewer process spawned
@@ -677,8 +676,8 @@ def _children() -> set[str]:
 
 
 def test_recorder_rejects_bad_options(tmp_path):
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     for kwargs, match in (
         ({"every": 0}, "every"),
         ({"max_arrows": -1}, "max_arrows"),
@@ -724,8 +723,8 @@ def test_stress_colors_scale():
 
 
 def test_plot_paper_writes_a_labelled_png(tmp_path):
-    model = simulate.load_model(MODELS / "sphere_drop.xml")
-    fld = GranularField(model, n_triangles=TRIANGLES)
+    model = simulate.load_model(MODELS / "sphere_drop.xml", n_triangles=TRIANGLES)
+    fld = GranularField(model)
     _, rec = simulate.run(model, 0.05, fld=fld)
     path = report.plot_paper(rec, fld.surface_z, tmp_path / "summary.png", title="sphere")
     assert path.stat().st_size > 20_000

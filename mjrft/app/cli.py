@@ -36,7 +36,6 @@ def _demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     material = Material.preset(args.material)
     t0 = time.perf_counter()
-    _warm_up()
     results = [
         demos.ellipsoid_pitch(n_triangles=args.triangles, material=material),
         demos.ellipsoid_pitch(n_triangles=args.triangles, material=material, amplitude=0.0),
@@ -62,7 +61,7 @@ def _demo(args: argparse.Namespace) -> int:
     prescribed = {"ellipsoid_pitch": results[0], "root_circumnutation": results[2]}
     for name, duration in DEMO_RIGS:
         rrd = out / DEMO_RRD if name == DEMO_RRD_RIG else None
-        fld, rec = _demo_rig(name, duration, material, args.triangles, rrd)
+        fld, rec = _demo_rig(name, duration, scene_options(args), rrd)
         if rrd is not None:
             written.append(rrd)
         cols = dict(zip(rec.columns, rec.array().T, strict=True))
@@ -89,16 +88,17 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _demo_rig(name: str, duration: float, material, n_triangles: int, rrd: Path | None):
-    """Simulate models/<name>.xml for `duration` s for `mjrft demo`; record it to `rrd` if given.
+def _demo_rig(name: str, duration: float, options, rrd: Path | None):
+    """Simulate models/<name>.xml for `duration` s for `mjrft demo` under the scene options
+    (``mjrft.SceneOptions``); record it to `rrd` if given.
 
     Returns (field, simulate.Recording with a row every 10 steps).
     """
     from mjrft.app import simulate
     from mjrft.field.granular_field import GranularField
 
-    model = simulate.load_model(simulate.models_dir() / f"{name}.xml")
-    fld = GranularField(model, material=material, n_triangles=n_triangles)
+    model = simulate.load_model(simulate.models_dir() / f"{name}.xml", options)
+    fld = GranularField(model)
     recorder = None
     if rrd is not None:
         from mjrft.app import viz
@@ -169,11 +169,6 @@ def _recorder(args: argparse.Namespace, model, fld):
 RUN_CSV = "timeseries.csv"
 RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
-#: Seconds of warm-up after which `mjrft run` says it is compiling (a cache load takes ~1 s).
-WARM_UP_NOTICE_S = 2.0
-#: Cold-start compilation time to announce: 238-268 s on the 2-core Zen 4 VM, 6-7 min on the
-#: Zen 3 VM (benchmarks/RESULTS.md's machines; the warm-up of a clean-clone CI run).
-COLD_START_S = "4-7 minutes"
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
 
@@ -231,7 +226,6 @@ def _run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     status, code = "completed", 0
     try:
-        run.warm_up = _warm_up()
         t_sim = time.perf_counter()
         try:
             simulate.run(
@@ -275,7 +269,7 @@ class _RunInfo:
 
     def __init__(self, xml: Path, model, fld, keyframe: int | None) -> None:
         self.xml, self.model, self.fld, self.keyframe = xml, model, fld, keyframe
-        self.warm_up = self.simulation = self.plots = float("nan")
+        self.simulation = self.plots = float("nan")
         self.error: str | None = None
 
     def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
@@ -310,31 +304,6 @@ class _RunInfo:
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(args.started[1])),
             **extra,
         }  # fmt: skip
-
-
-def _warm_up() -> float:
-    """Compile (or load from numba's cache) the compiled code before the first step, saying so
-    if it takes long (the first run in an environment); returns the seconds it took."""
-    import threading
-
-    from mjrft.field.warmup import warm_up
-
-    notice = threading.Timer(
-        WARM_UP_NOTICE_S,
-        lambda: print(
-            "mjrft: compiling the field's numba code for this environment, once: about "
-            f"{COLD_START_S} on a 2-core machine; later runs load it from numba's cache in "
-            "about a second",
-            file=sys.stderr,
-            flush=True,
-        ),
-    )
-    notice.daemon = True
-    notice.start()
-    try:
-        return warm_up()
-    finally:
-        notice.cancel()
 
 
 def _keyframe(model, text: str | None) -> int | None:
@@ -404,8 +373,7 @@ def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: st
     outputs = [str(rec.sink.path), *map(str, pngs)]
     if recorder is not None and recorder.path is not None:
         outputs.append(str(recorder.path))
-    timing = {"warm_up_s": run.warm_up, "simulation_s": run.simulation, "plots_s": run.plots,
-              "total_s": total}  # fmt: skip
+    timing = {"simulation_s": run.simulation, "plots_s": run.plots, "total_s": total}
     metadata.write(
         out / RUN_JSON,
         run.record(args, status, simulated_s=t_end, rows=rec.n_rows, outputs=outputs,
@@ -520,7 +488,7 @@ def _add_run(sub) -> None:
         "run",
         help="simulate an MJCF scene with granular forces and write a time series",
         description=(
-            "Simulate MODEL with the granular RFT field installed (the medium, material and "
+            "Simulate MODEL with the granular RFT field (the medium, material and "
             "intruding geoms come from the model's <custom> section; see docs/mjcf.md; the "
             "options below override them). Starts from keyframe 0 if the model has one. Writes "
             "DIR/run.json (versions, machine, options, model hashes, timings, outcome), "
@@ -639,7 +607,6 @@ def _sweep(args: argparse.Namespace) -> int:
 
     from mjrft import sweep
 
-    _warm_up()  # once here, so that the workers load the compiled code from numba's cache
     study = sweep.Study.load(args.study)
     out = Path(args.out)
     if args.plots_only:
@@ -731,15 +698,15 @@ def _add_view(sub) -> None:
 
 
 def _add_view_model(sub) -> None:
-    """The ``mjrft view`` subcommand: MuJoCo's interactive viewer with the field installed."""
+    """The ``mjrft view`` subcommand: MuJoCo's interactive viewer with the field acting."""
     from mjrft.app.mujoco_viewer import DEFAULT_FORCE_SCALE
 
     v = sub.add_parser(
         "view",
-        help="open MODEL in MuJoCo's interactive viewer with the granular field installed",
+        help="open MODEL in MuJoCo's interactive viewer with the granular field acting",
         description=(
             "Simulate MODEL in real time in MuJoCo's interactive viewer (mujoco.viewer) with the "
-            "granular RFT field installed, drawing each intruding body's RFT force as an orange "
+            "granular RFT field, drawing each intruding body's RFT force as an orange "
             "arrow from its CoM (and with --triangle-arrows the per-triangle forces in blue). "
             "Needs a display; on a headless machine record with `mjrft run --rrd` instead."
         ),
@@ -778,10 +745,29 @@ def _view(args: argparse.Namespace) -> int:
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, args.model)
     data = simulate.reset_data(model, keyframe)
-    _warm_up()
     mujoco_viewer.launch(model, fld, data=data, ctrl=ctrl, force_scale=args.force_scale,
                   triangles=args.triangle_arrows, duration=args.duration)  # fmt: skip
     return 0
+
+
+#: The command-line option (argparse dest) that sets each ``mjrft.SceneOptions`` field.
+SCENE_OPTIONS = {
+    "material": "material", "n_triangles": "triangles", "tolerance": "tolerance",
+    "low_speed": "low_speed", "stick_reach": "stick_reach", "deform_cell": "deform_cell",
+    "repose": "repose", "deform_every": "deform_every", "dynamic": "dynamic",
+}  # fmt: skip
+
+
+def scene_options(args: argparse.Namespace):
+    """The ``mjrft.SceneOptions`` a command's options ask for (the only place the command line
+    reaches the scene): options a command lacks or leaves unset keep the MJCF's values."""
+    from mjrft.field.options import SceneOptions
+
+    given = {field: getattr(args, dest, None) for field, dest in SCENE_OPTIONS.items()}
+    dynamic = given["dynamic"]
+    if isinstance(dynamic, list):  # --dynamic RHO_C [LAMBDA]
+        given["dynamic"] = dynamic[0] if len(dynamic) == 1 else tuple(dynamic)
+    return SceneOptions(**given)
 
 
 def _scene(args: argparse.Namespace, xml):
@@ -789,15 +775,10 @@ def _scene(args: argparse.Namespace, xml):
     from mjrft.app import simulate
     from mjrft.field.granular_field import GranularField
 
-    model = simulate.load_model(xml, deform_cell=args.deform_cell, repose=args.repose)
+    model = simulate.load_model(xml, scene_options(args))
     simulate.configure(model, args.timestep, args.integrator)
     keyframe = _keyframe(model, args.keyframe)
-    fld = GranularField(
-        model, material=args.material, n_triangles=args.triangles, tolerance=args.tolerance,
-        low_speed=args.low_speed, stick_reach=args.stick_reach, deform_cell=args.deform_cell,
-        repose=args.repose, deform_every=args.deform_every, dynamic=args.dynamic,
-    )  # fmt: skip
-    return model, keyframe, fld
+    return model, keyframe, GranularField(model)
 
 
 def _add_scene_options(r) -> None:

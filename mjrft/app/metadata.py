@@ -19,7 +19,7 @@ from xml.etree import ElementTree
 from mjrft.app.report import atomic_path
 
 #: Distributions whose versions are recorded.
-_PACKAGES = ("mjrft", "mujoco", "numpy", "numba", "matplotlib", "rerun-sdk", "trimesh")
+_PACKAGES = ("mjrft", "mujoco", "numpy", "matplotlib", "rerun-sdk", "trimesh")
 
 
 def file_sha256(path: str | os.PathLike) -> str:

@@ -1,7 +1,8 @@
-"""MuJoCo's interactive viewer with the granular field installed and its forces drawn.
+"""MuJoCo's interactive viewer stepping a granular scene, the field's forces drawn.
 
-``mjrft view MODEL`` runs ``launch``; in a loop of your own, install the field, step, and
-call ``draw_forces(viewer.user_scn, ...)`` before ``viewer.sync()``
+``mjrft view MODEL`` runs ``launch``; in a loop of your own, step a model from
+``mjrft.load_model`` (its engine plugin acts in every step) and call
+``draw_forces(viewer.user_scn, ...)`` before ``viewer.sync()``
 (docs/field.md, "In MuJoCo's viewer"). The arrows are scene decorations (``mjvScene`` user
 geoms): they are drawn, never simulated. A deforming ground whose initial surface is an hfield
 (``mjrft:surface_hfield``) is drawn by that hfield, rewritten in place (``draw_ground``).
@@ -111,8 +112,10 @@ def draw_ground(
 ) -> None:
     """Write data's deforming ground into hfield's samples (``model.hfield_data``, in place,
     clipped to the hfield's elevation range) where they lie over the ground's grid; call the
-    viewer's ``update_hfield(hfield)`` after. The field keeps its own copy of the initial
-    surface, but a field built later from this model would start from the rewritten one."""
+    viewer's ``update_hfield(hfield)`` after. The engine starts every MjData's ground from its
+    own tables, but a GranularField made from this model while the samples are rewritten would
+    read another surface than the tables hold (and refuse the model): restore ``hfield_data``
+    after (``launch`` does)."""
     g = int(np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_HFIELD)
                            & (model.geom_dataid == hfield))[0])  # fmt: skip
     rx, ry, top, _ = (float(v) for v in model.hfield_size[hfield])
@@ -138,8 +141,8 @@ def launch(
     triangles: bool = False,
     duration: float | None = None,
 ) -> mujoco.MjData:
-    """Simulate in MuJoCo's passive viewer, in real time, with the field installed and its forces
-    drawn, until the window is closed (or `duration` simulated seconds pass).
+    """Simulate fld's model in MuJoCo's passive viewer, in real time, the field's forces drawn,
+    until the window is closed (or `duration` simulated seconds pass).
 
     ctrl: an optional controller ``ctrl(t, data)`` as in ``mjrft.app.simulate.run``. Returns the
     final MjData. Raises RuntimeError naming what is missing when no window can be opened.
@@ -158,7 +161,7 @@ def launch(
     hfield = ground_hfield(model, fld)
     initial = model.hfield_data.copy()
     try:
-        with fld.installed(), mujoco.viewer.launch_passive(model, data) as viewer:
+        with mujoco.viewer.launch_passive(model, data) as viewer:
             wall0, sim0 = time.perf_counter(), data.time
             drawn = -math.inf
             while viewer.is_running() and (duration is None or data.time - sim0 < duration):

@@ -1,4 +1,4 @@
-"""Run an MJCF scene with the granular field installed and record its time series.
+"""Run an MJCF scene that carries the granular field and record its time series.
 
 Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
 """
@@ -16,7 +16,9 @@ import mujoco
 import numpy as np
 
 from mjrft.app.regime import FroudeWatch, com_velocity
+from mjrft.field import plugin
 from mjrft.field.granular_field import GranularField
+from mjrft.field.options import SceneOptions
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -49,15 +51,15 @@ def resolve_model(name: str | os.PathLike) -> Path:
     raise ValueError(f"no MJCF file {str(name)!r} and no shipped model of that name ({names})")
 
 
-def load_model(path: str | os.PathLike, **options) -> mujoco.MjModel:
+def load_model(
+    path: str | os.PathLike, options: SceneOptions | None = None, **overrides
+) -> mujoco.MjModel:
     """Compile an MJCF file (or a shipped model by name, ``resolve_model``) with the engine
-    plugin (``mjrft.load_model``; options: ``mjrft.SceneOptions`` fields, e.g. deform_cell [m],
-    0 off, repose [deg]), with an error that names the file."""
-    from mjrft.field.plugin import load_model as load_with_engine
-
+    plugin (``mjrft.load_model``; options, overrides: ``mjrft.SceneOptions`` and its fields,
+    e.g. n_triangles, deform_cell [m], 0 off, repose [deg]), with an error that names the file."""
     path = resolve_model(path)
     try:
-        return load_with_engine(str(path), **options)
+        return plugin.load_model(mujoco.MjSpec.from_file(str(path)), options, **overrides)
     except (ValueError, FileNotFoundError) as exc:
         raise ValueError(f"cannot load MJCF model {str(path)!r}: {exc}") from exc
 
@@ -279,10 +281,12 @@ def run(
     keyframe: int | None = 0,
     ctrl: Controller | None = None,
 ) -> tuple[mujoco.MjData, Recording]:
-    """Simulate `duration` seconds from a keyframe with the field installed.
+    """Simulate `duration` seconds from a keyframe; the engine plugin the model carries adds the
+    field's forces inside every step.
 
     Args:
-      model: compiled model (timestep/integrator already configured).
+      model: a model from ``load_model`` (``mjrft.load_model``: it carries the engine plugin),
+        timestep/integrator already configured.
       duration: simulated time [s], > 0.
       fld: the field (built from the model if None).
       record_every: record one row every this many steps (the initial state is always recorded).
@@ -325,36 +329,35 @@ def run(
     diverged = _diverging_count(warnings)
     watch = FroudeWatch(model, fld)
     rec.max_froude = watch.max_froude
-    with fld.installed():
-        wrench = fld.wrench_of(data)  # a live view of this MjData's last pass
-        for i in range(n_steps):
-            record = i % record_every == 0
-            observe = observer is not None and i % observe_every == 0
-            t_prev = data.time
-            if (record or observe) and rk4:
-                mujoco.mj_forward(model, data)
-                if record:
-                    rec.append(record_row(model, data, fld, wrench))
-                    watch.observe(t_prev, data, wrench)
-                if observe:
-                    observer(i, t_prev, data)
-            if apply_ctrl is not None:
-                apply_ctrl(data)
-            mujoco.mj_step(model, data)
-            if _diverging_count(warnings) != diverged:
-                raise _divergence(data, i, t_prev, model.opt.timestep)
-            if not rk4:
-                watch.check(i, t_prev, data, wrench)
-            if record and not rk4:
-                rec.append(record_row(model, data, fld, wrench, time=t_prev))
-            if observe and not rk4:
+    wrench = fld.wrench_of(data)  # a live view of this MjData's last pass
+    for i in range(n_steps):
+        record = i % record_every == 0
+        observe = observer is not None and i % observe_every == 0
+        t_prev = data.time
+        if (record or observe) and rk4:
+            mujoco.mj_forward(model, data)
+            if record:
+                rec.append(record_row(model, data, fld, wrench))
+                watch.observe(t_prev, data, wrench)
+            if observe:
                 observer(i, t_prev, data)
-            if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
-                progress((i + 1) / n_steps)
-        mujoco.mj_forward(model, data)
-        rec.append(record_row(model, data, fld, wrench))
-        if observer is not None:
-            observer(n_steps, data.time, data)
+        if apply_ctrl is not None:
+            apply_ctrl(data)
+        mujoco.mj_step(model, data)
+        if _diverging_count(warnings) != diverged:
+            raise _divergence(data, i, t_prev, model.opt.timestep)
+        if not rk4:
+            watch.check(i, t_prev, data, wrench)
+        if record and not rk4:
+            rec.append(record_row(model, data, fld, wrench, time=t_prev))
+        if observe and not rk4:
+            observer(i, t_prev, data)
+        if progress is not None and ((i + 1) % tick == 0 or i + 1 == n_steps):
+            progress((i + 1) / n_steps)
+    mujoco.mj_forward(model, data)
+    rec.append(record_row(model, data, fld, wrench))
+    if observer is not None:
+        observer(n_steps, data.time, data)
     return data, rec
 
 

@@ -58,17 +58,16 @@ def run(
     """
     if passes < 1 or length <= 0.0:
         raise ValueError(f"passes {passes!r} and length {length!r} [m] must be positive")
-    model, field, data = rig(slip, deform_cell=deform_cell, omega=omega,
-                             n_triangles=n_triangles, model_path=model_path)  # fmt: skip
+    model, _, data = rig(slip, deform_cell=deform_cell, omega=omega, n_triangles=n_triangles,
+                         model_path=model_path)  # fmt: skip
     duration = length / data.ctrl[0]
     out = []
-    with field.installed():
-        for _ in range(passes):
-            start = data.time
-            data.qpos[:] = model.key("start").qpos  # the ground (userdata) stays
-            data.qvel[:] = 0.0
-            mujoco.mj_forward(model, data)
-            out.append(_one_pass(model, data, start, duration))
+    for _ in range(passes):
+        start = data.time
+        data.qpos[:] = model.key("start").qpos  # the ground (in data.plugin_state) stays
+        data.qvel[:] = 0.0
+        mujoco.mj_forward(model, data)
+        out.append(_one_pass(model, data, start, duration))
     return out
 
 
@@ -81,11 +80,12 @@ def rig(
     model_path: Path = MODEL,
 ) -> tuple[mujoco.MjModel, GranularField, mujoco.MjData]:
     """The rig's model, field and data at its start, its servos set to ``slip`` and ``omega``
-    [rad/s] (deform_cell [m]: the deforming ground's cell, 0 for the pristine surface)."""
+    [rad/s] (deform_cell [m]: the deforming ground's cell, 0 for the pristine surface;
+    n_triangles: the wheel's triangle count, None for the model's)."""
     if not -1.0 < slip < 1.0:
         raise ValueError(f"slip {slip!r}: must lie in (-1, 1) (the carriage must move forward)")
-    model = load_model(str(model_path), deform_cell=deform_cell)
-    field = GranularField(model, n_triangles=n_triangles)
+    model = load_model(str(model_path), deform_cell=deform_cell, n_triangles=n_triangles)
+    field = GranularField(model)
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key("start").id)
     data.ctrl[:] = ((1.0 - slip) * omega * RADIUS, omega)

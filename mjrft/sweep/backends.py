@@ -48,9 +48,6 @@ def _init_worker(sweep_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     _exit_with(sweep_pid)
-    from mjrft.field.warmup import warm_up
-
-    warm_up()  # numba's code is in memory already (fork, forkserver) or loads from its cache
 
 
 def _exit_with(pid: int) -> None:
@@ -70,10 +67,10 @@ def _exit_with(pid: int) -> None:
 
 def _context() -> multiprocessing.context.BaseContext:
     """How workers start. By fork when this process runs no other thread (as in ``mjrft
-    sweep``): a forked worker inherits mjrft's compiled code and starts in milliseconds, and
+    sweep``): a forked worker inherits the imported modules and starts in milliseconds, and
     with a single thread there is no lock another thread could hold across the fork. Otherwise
-    from a forkserver that has imported mjrft and loaded its compiled code once (fork-safe: the
-    server starts clean), which costs about 2 s once per process; spawn where neither exists."""
+    from a forkserver that has imported mjrft and loaded the engine library once (fork-safe:
+    the server starts clean); spawn where neither exists."""
     methods = multiprocessing.get_all_start_methods()
     if "fork" in methods and threading.active_count() == 1:
         return multiprocessing.get_context("fork")

@@ -1,6 +1,6 @@
-"""One run of a study, from scratch: its model built and compiled, a new field, the simulation,
-its metrics; any failure (a value that does not compile, a diverging simulation, an exception
-in user code) is the run's outcome, not the sweep's end."""
+"""One run of a study, from scratch: its model built and compiled with the engine plugin, the
+simulation, its metrics; any failure (a value that does not compile, a diverging simulation, an
+exception in user code) is the run's outcome, not the sweep's end."""
 
 from __future__ import annotations
 
@@ -60,14 +60,18 @@ def execute(study: Study, run: RunSpec, out: str | Path | None = None) -> dict[s
 
 
 def build(study: Study, run: RunSpec) -> tuple[mujoco.MjModel, Any, Any]:
-    """(compiled model, GranularField, controller or None) of one run, from the MJCF file."""
+    """(compiled model with the engine plugin, GranularField, controller or None) of one run,
+    from the MJCF file with the run's values and scene options."""
     from mjrft.field.granular_field import GranularField
+    from mjrft.field.plugin import load_model
     from mjrft.sweep.paths import control_schedule
 
     spec = mujoco.MjSpec.from_file(str(study.model))
     config = study.configure(spec, run)
-    model = spec.compile()  # a ValueError with MuJoCo's message names the element at fault
-    fld = GranularField(model, **config.field_kwargs)
+    # A ValueError with MuJoCo's message names the element at fault, a SceneError the geom or
+    # mjrft: value.
+    model = load_model(spec, config.options)
+    fld = GranularField(model)
     ctrl = control_schedule(model, config.schedules)
     if study.controller:
         factory = callables.load(study.controller, "controller")

@@ -11,8 +11,9 @@ Path forms (``[i]``, ``[i:j]`` or ``[i,j,...]`` address elements of a vector att
   ``implicit``, ``implicitfast``), ``option.gravity[2]`` [m/s^2], ...;
 * ``mjrft:<name>[i]``: a ``<custom>`` numeric or text of the scene (``mjrft.field.scene.KEYS``),
   added to the model if it has none;
-* ``material``, ``triangles``, ``tolerance``, ``low_speed``, ``stick_reach``: ``GranularField``
-  options; ``timestep`` and ``integrator``: ``option.timestep`` and ``option.integrator``;
+* ``material``, ``triangles``, ``tolerance``, ``low_speed``, ``stick_reach``: scene options
+  (``mjrft.SceneOptions``, given to ``mjrft.load_model``); ``timestep`` and ``integrator``:
+  ``option.timestep`` and ``option.integrator``;
 * ``ctrl.<actuator>``: a constant control, or ``ctrl.<actuator>.offset|amplitude|frequency|phase``:
   u(t) = offset + amplitude sin(2 pi frequency t + phase) (frequency [Hz], phase [rad]), written
   before every step;
@@ -30,6 +31,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from mjrft.field.options import SceneOptions
 from mjrft.sweep.errors import StudyError
 
 #: Kinds of named MJCF elements a path may address (MjSpec finds them by name).
@@ -44,7 +46,7 @@ ORIENTATIONS = {
     "xyaxes": mujoco.mjtOrientation.mjORIENTATION_XYAXES,
     "zaxis": mujoco.mjtOrientation.mjORIENTATION_ZAXIS,
 }
-#: GranularField options a path may set, with the keyword each goes to.
+#: Scene options a path may set, with the ``mjrft.SceneOptions`` field each goes to.
 FIELD_OPTIONS = {
     "material": "material",
     "triangles": "n_triangles",
@@ -316,12 +318,18 @@ def _check_field(t: Target, value: Any) -> None:
 
 @dataclass
 class RunConfig:
-    """What one run sets besides the MjSpec: GranularField keywords, control schedules
-    (actuator -> {"value" or SINE_FIELDS: number}) and the controller factory's arguments."""
+    """What one run sets besides the MjSpec: scene options (``mjrft.SceneOptions`` field ->
+    value), control schedules (actuator -> {"value" or SINE_FIELDS: number}) and the controller
+    factory's arguments."""
 
-    field_kwargs: dict[str, Any] = field(default_factory=dict)
+    scene: dict[str, Any] = field(default_factory=dict)
     schedules: dict[str, dict[str, float]] = field(default_factory=dict)
     controller_kwargs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def options(self) -> SceneOptions:
+        """The run's scene options, for ``mjrft.load_model``."""
+        return SceneOptions(**self.scene)
 
 
 def apply(spec: mujoco.MjSpec, config: RunConfig, t: Target, value: Any) -> None:
@@ -332,7 +340,7 @@ def apply(spec: mujoco.MjSpec, config: RunConfig, t: Target, value: Any) -> None
         set_custom_value(spec, t, value)
     elif t.where == "field":
         _check_field(t, value)
-        config.field_kwargs[t.name] = int(value) if t.name == "n_triangles" else value
+        config.scene[t.name] = int(value) if t.name == "n_triangles" else value
     elif t.where == "ctrl":
         if spec.actuator(t.name) is None:
             raise StudyError(

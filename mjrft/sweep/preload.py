@@ -1,6 +1,8 @@
-"""Imported once by the local backend's forkserver: it imports mjrft and loads the compiled code
-(from numba's on-disk cache), so every worker forked from that server starts ready to run."""
+"""Imported once by the local backend's forkserver: it imports what a run needs (mujoco, mjrft's
+field and sweep code) and loads the engine library, so every worker forked from that server
+starts ready to run."""
 
-from mjrft.field.warmup import warm_up
+import mjrft.sweep.executor  # noqa: F401 (imported for the workers forked from this server)
+from mjrft.field import plugin
 
-warm_up()
+plugin.library()

@@ -404,7 +404,7 @@ def _validate(study: Study, where: str) -> None:
         spec = _spec(study)
         configs.append((spec, study.configure(spec, run)))
     _check_config(study, configs[0][1], where)
-    model = _checking_model(study, configs[0][0])
+    model = _checking_model(study, configs[0][0], where)
     _check_names(study, model, where)
 
 
@@ -426,22 +426,30 @@ def _check_config(study: Study, config: RunConfig, where: str) -> None:
         raise StudyError(f"{where}: both a controller and ctrl.* schedules drive the actuators")
     if config.controller_kwargs and not study.controller:
         raise StudyError(f"{where}: controller.* values are given but [study] has no controller")
-    if "n_triangles" in config.field_kwargs and "tolerance" in config.field_kwargs:
+    if "n_triangles" in config.scene and "tolerance" in config.scene:
         raise StudyError(f"{where}: both triangles and tolerance are set; use one")
     if study.controller:
         callables.load(study.controller, f"{where} [study] controller")
 
 
-def _checking_model(study: Study, spec: mujoco.MjSpec) -> mujoco.MjModel:
-    """The compiled model of the first run, or of the model as it is if that run's values do
-    not compile (that is the run's outcome, not an error of the study)."""
+def _checking_model(study: Study, spec: mujoco.MjSpec, where: str) -> mujoco.MjModel:
+    """The model of the first run with the engine plugin (its MJCF scene), or of the model as
+    it is if that run's values do not compile (that is the run's outcome, not an error of the
+    study)."""
+    from mjrft.field.plugin import load_model
+
     try:
-        return spec.compile()
+        spec.compile()
     except ValueError:
+        spec = _spec(study)
         try:
-            return _spec(study).compile()
+            spec.compile()
         except ValueError as exc:
             raise StudyError(f"cannot compile MJCF model {str(study.model)!r}: {exc}") from None
+    try:
+        return load_model(spec)
+    except ValueError as exc:
+        raise StudyError(f"{where}: the model's scene is invalid: {exc}") from None
 
 
 def _check_names(study: Study, model: mujoco.MjModel, where: str) -> None:
@@ -452,10 +460,7 @@ def _check_names(study: Study, model: mujoco.MjModel, where: str) -> None:
         raise StudyError(f"{where} [study]: the model has no keyframe named {study.keyframe!r}")
     if isinstance(study.keyframe, int) and study.keyframe and not study.keyframe < model.nkey:
         raise StudyError(f"{where} [study]: keyframe {study.keyframe}: the model has {model.nkey}")
-    try:
-        intruders = [be.name for be in GranularField(model).bodies]
-    except ValueError as exc:
-        raise StudyError(f"{where}: the model's scene is invalid: {exc}") from None
+    intruders = [be.name for be in GranularField(model).bodies]
     for m in study.metrics:
         if m.kind != "custom":
             check_metric(m, model, intruders, study.duration, f"{where} [metrics.{m.name}]")
