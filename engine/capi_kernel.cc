@@ -17,8 +17,8 @@ namespace kernel = mjrft::kernel;
 // forces: out (n, 3) [N] on n world-frame elements under the flat surface at surface_z [m];
 // returns #acting.
 MJRFT_API int mjrft_forces(const f64* pos, const f64* normal, const f64* area, const f64* vel,
-                           i64 n, const f64* coef, i64 ncoef, f64 alpha_y, f64 zeta,
-                           f64 surface_z, f64* out) {
+                           i64 n, const f64* coef, i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z,
+                           f64* out) {
   return kernel::Forces(pos, normal, area, vel, n, coef, ncoef, alpha_y, zeta, surface_z, out);
 }
 
@@ -30,8 +30,8 @@ MJRFT_API int mjrft_checked_unit_normals(const f64* pos, const f64* normal, cons
 }
 
 // input_flags: *bad (any bad input), *nonunit (any normal not of unit length), 0 or 1.
-MJRFT_API void mjrft_input_flags(const f64* pos, const f64* normal, const f64* area,
-                                 const f64* vel, i64 n, int* bad, int* nonunit) {
+MJRFT_API void mjrft_input_flags(const f64* pos, const f64* normal, const f64* area, const f64* vel,
+                                 i64 n, int* bad, int* nonunit) {
   bool b = false, u = false;
   kernel::InputFlags(pos, normal, area, vel, n, &b, &u);
   *bad = b;
@@ -43,29 +43,28 @@ MJRFT_API void mjrft_input_flags(const f64* pos, const f64* normal, const f64* a
 // spelled out (coef (ncoef,), alpha_y, zeta, surface_prm (13,), surface_grid, use_region,
 // region (2, 3), soil); rot (3, 3), pos, omega, v_ref, p_ref, com (3,); elem_force (n, 3); rows
 // NULL or (n, 10). Returns #acting.
-MJRFT_API int mjrft_body_wrench(const f64* cent, const f64* norm, const f64* area,
-                                const f64* reach, const f64* patch, i64 start, i64 stop,
-                                const f64* coef, i64 ncoef, f64 alpha_y, f64 zeta,
-                                const f64* surface_prm, const f64* surface_grid, int use_region,
-                                const f64* region, const f64* soil, const f64* rot,
-                                const f64* pos, const f64* omega, const f64* v_ref,
-                                const f64* p_ref, const f64* com, f64* wrench, f64* elem_force,
-                                f64* rows) {
+MJRFT_API int mjrft_body_wrench(const f64* cent, const f64* norm, const f64* area, const f64* reach,
+                                const f64* patch, i64 start, i64 stop, const f64* coef, i64 ncoef,
+                                f64 alpha_y, f64 zeta, const f64* surface_prm,
+                                const f64* surface_grid, int use_region, const f64* region,
+                                const f64* soil, const f64* rot, const f64* pos, const f64* omega,
+                                const f64* v_ref, const f64* p_ref, const f64* com, f64* wrench,
+                                f64* elem_force, f64* rows) {
   const kernel::Elements e = {cent, norm, area, reach, patch};
-  const kernel::Medium med = {coef,         ncoef,          alpha_y, zeta, surface_prm,
-                              surface_grid, use_region != 0, region};
-  return kernel::BodyWrench(e, start, stop, med, soil, rot, pos, omega, v_ref, p_ref, com,
-                            wrench, elem_force, rows);
+  const kernel::Medium med = {coef,        ncoef,        alpha_y,         zeta,
+                              surface_prm, surface_grid, use_region != 0, region};
+  return kernel::BodyWrench(e, start, stop, med, soil, rot, pos, omega, v_ref, p_ref, com, wrench,
+                            elem_force, rows);
 }
 
 // trajectory: out (T, 6) wrenches of a body (n elements, body frame) along rot (T, 3, 3),
 // pos, lin_vel, ang_vel, point (T, 3) under the flat surface at surface_z [m].
-MJRFT_API void mjrft_trajectory(const f64* cent, const f64* norm, const f64* area,
-                                const f64* reach, const f64* patch, i64 n, const f64* coef,
-                                i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, const f64* rot,
-                                const f64* pos, const f64* lin_vel, const f64* ang_vel,
-                                const f64* point, i64 T, f64* out) {
+MJRFT_API void mjrft_trajectory(const f64* cent, const f64* norm, const f64* area, const f64* reach,
+                                const f64* patch, i64 n, const f64* coef, i64 ncoef, f64 alpha_y,
+                                f64 zeta, f64 surface_z, const f64* rot, const f64* pos,
+                                const f64* lin_vel, const f64* ang_vel, const f64* point, i64 T,
+                                f64* out) {
   const kernel::Elements e = {cent, norm, area, reach, patch};
-  kernel::Trajectory(e, n, coef, ncoef, alpha_y, zeta, surface_z, rot, pos, lin_vel, ang_vel,
-                     point, T, out);
+  kernel::Trajectory(e, n, coef, ncoef, alpha_y, zeta, surface_z, rot, pos, lin_vel, ang_vel, point,
+                     T, out);
 }

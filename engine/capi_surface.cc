@@ -16,14 +16,14 @@ namespace surface = mjrft::surface;
 
 // surface_heights: out (n,) surface heights [m] at the horizontal positions (x[i], y[i]) [m],
 // world frame.
-MJRFT_API void mjrft_surface_heights(const f64* prm, const f64* grid, const f64* soil,
-                                     const f64* x, const f64* y, i64 n, f64* out) {
+MJRFT_API void mjrft_surface_heights(const f64* prm, const f64* grid, const f64* soil, const f64* x,
+                                     const f64* y, i64 n, f64* out) {
   for (i64 i = 0; i < n; i++) out[i] = surface::Height(prm, grid, soil, x[i], y[i]);
 }
 
 // surface_depths: out (n,) resisting depths [m] of the world points (x[i], y[i], z[i]) [m]
 // (<= 0 outside the medium).
-MJRFT_API void mjrft_surface_depths(const f64* prm, const f64* grid, const f64* soil,
-                                    const f64* x, const f64* y, const f64* z, i64 n, f64* out) {
+MJRFT_API void mjrft_surface_depths(const f64* prm, const f64* grid, const f64* soil, const f64* x,
+                                    const f64* y, const f64* z, i64 n, f64* out) {
   for (i64 i = 0; i < n; i++) out[i] = surface::Depth(prm, grid, soil, x[i], y[i], z[i]);
 }

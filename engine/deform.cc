@@ -36,8 +36,7 @@ void Footprints(const mjData* d, const Tables& t, State& s, f64 top) {
       i64 start = t.tgeom_elemadr[g];
       s.soil_stats[soil::kStatRasterised] +=
           soil::Footprint(t.surface_prm, t.elem_vert, start, start + t.tgeom_elemnum[g],
-                          d->xmat + 9 * b, d->xpos + 3 * b, k, s.soil_floor, s.soil_owner, kb,
-                          top);
+                          d->xmat + 9 * b, d->xpos + 3 * b, k, s.soil_floor, s.soil_owner, kb, top);
     }
     soil::Union(allbox, kb[0], kb[1], kb[2], kb[3]);
   }

@@ -55,8 +55,8 @@ static int GeomWrench(const mjData* d, const Tables& t, const State& s, int g, c
                             elem_force, nullptr);
 }
 
-int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
-                const f64* v, const f64* omega, f64* out, int* acting) {
+int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k, const f64* v,
+                const f64* omega, f64* out, int* acting) {
   (void)m;
   for (int c = 0; c < 6; c++) out[c] = 0.0;
   i64 b = t.tbody_bodyid[k];

@@ -9,9 +9,9 @@
 #include <mutex>
 #include <new>
 #include <shared_mutex>
+#include <string>
 #include <type_traits>
 #include <unordered_map>
-#include <string>
 #include <utility>
 
 #include <mujoco/mjplugin.h>
@@ -51,8 +51,8 @@ void ForEachPersistent(const Sizes& n, F&& f) {
 }
 
 // Assigns a pointer member of State, whatever its element type.
-void SetPointer(State* s, f64* State::*member, void* p) { s->*member = static_cast<f64*>(p); }
-void SetPointer(State* s, i64* State::*member, void* p) { s->*member = static_cast<i64*>(p); }
+void SetPointer(State* s, f64* State::* member, void* p) { s->*member = static_cast<f64*>(p); }
+void SetPointer(State* s, i64* State::* member, void* p) { s->*member = static_cast<i64*>(p); }
 
 // The sizes that fix the state's layout, from the instance's config: MuJoCo asks nstate while
 // compiling, before the model's custom numeric fields hold their data, so the loader writes
@@ -109,13 +109,20 @@ bool Instance::ReadSizes(const mjModel* m, Sizes* n, std::string* error) {
   }
   bool soil = false;
   int j = 0;
-#define MJRFT_X(type, name, doc) \
-  if (std::string(#name) == "soil" && j < nscalar) soil = scalars[j] != 0;  \
+#define MJRFT_X(type, name, doc)                                           \
+  if (std::string(#name) == "soil" && j < nscalar) soil = scalars[j] != 0; \
   j++;
   MJRFT_TABLE_SCALARS(MJRFT_X)
 #undef MJRFT_X
-  *n = {m->nbody, m->nv, m->nu, t.nelem, t.ntgeom, t.ntbody, t.nsoil,
-        soil ? t.surface_nrow : 1, soil ? t.surface_ncol : 1};
+  *n = {m->nbody,
+        m->nv,
+        m->nu,
+        t.nelem,
+        t.ntgeom,
+        t.ntbody,
+        t.nsoil,
+        soil ? t.surface_nrow : 1,
+        soil ? t.surface_ncol : 1};
   return true;
 }
 
@@ -190,11 +197,11 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
       next += count;
     }
   };
-#define MJRFT_X(type, name, count, doc)                                                       \
-  if constexpr (std::is_same<type, i64>::value) {                                             \
-    place(#name, static_cast<i64>(count), nullptr, reinterpret_cast<const i64**>(&t.name));   \
-  } else {                                                                                    \
-    place(#name, static_cast<i64>(count), reinterpret_cast<const f64**>(&t.name), nullptr);   \
+#define MJRFT_X(type, name, count, doc)                                                     \
+  if constexpr (std::is_same<type, i64>::value) {                                           \
+    place(#name, static_cast<i64>(count), nullptr, reinterpret_cast<const i64**>(&t.name)); \
+  } else {                                                                                  \
+    place(#name, static_cast<i64>(count), reinterpret_cast<const f64**>(&t.name), nullptr); \
   }
   MJRFT_TABLE_ARRAYS(MJRFT_X)
 #undef MJRFT_X
@@ -217,16 +224,16 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
   for (i64 g = 0; g < t.ntgeom; g++) {
     if (t.tgeom_geomid[g] < 0 || t.tgeom_geomid[g] >= m->ngeom) {
       *error = std::string(kPluginName) + ": tagged geom " + std::to_string(g) + " has id " +
-               std::to_string(t.tgeom_geomid[g]) + ", the model has " +
-               std::to_string(m->ngeom) + " geoms: reload the model";
+               std::to_string(t.tgeom_geomid[g]) + ", the model has " + std::to_string(m->ngeom) +
+               " geoms: reload the model";
       return nullptr;
     }
   }
   for (i64 k = 0; k < t.ntbody; k++) {
     if (t.tbody_bodyid[k] <= 0 || t.tbody_bodyid[k] >= m->nbody) {
       *error = std::string(kPluginName) + ": tagged body " + std::to_string(k) + " has id " +
-               std::to_string(t.tbody_bodyid[k]) + ", the model has " +
-               std::to_string(m->nbody) + " bodies: reload the model";
+               std::to_string(t.tbody_bodyid[k]) + ", the model has " + std::to_string(m->nbody) +
+               " bodies: reload the model";
       return nullptr;
     }
   }
@@ -243,13 +250,13 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
   out->work_.assign(nf, 0.0);
   out->iwork_.assign(ni, 0);
   nf = ni = 0;
-#define MJRFT_X(type, name, count, doc)                                       \
-  if constexpr (std::is_same<type, i64>::value) {                             \
-    SetPointer(&out->work_state_, &State::name, out->iwork_.data() + ni);     \
-    ni += static_cast<i64>(count);                                            \
-  } else {                                                                    \
-    SetPointer(&out->work_state_, &State::name, out->work_.data() + nf);      \
-    nf += static_cast<i64>(count);                                            \
+#define MJRFT_X(type, name, count, doc)                                   \
+  if constexpr (std::is_same<type, i64>::value) {                         \
+    SetPointer(&out->work_state_, &State::name, out->iwork_.data() + ni); \
+    ni += static_cast<i64>(count);                                        \
+  } else {                                                                \
+    SetPointer(&out->work_state_, &State::name, out->work_.data() + nf);  \
+    nf += static_cast<i64>(count);                                        \
   }
   MJRFT_STATE_WORK(MJRFT_X)
 #undef MJRFT_X
@@ -289,7 +296,7 @@ void Instance::ResetState(const mjModel* m, int instance, f64* plugin_state) {
   // every geom may hold element forces (they are zeroed when it is culled)
   i64 offset = 0;
   ForEachPersistent(n, [&](auto member, i64 size) {
-    if constexpr (std::is_same<decltype(member), i64* State::*>::value) {
+    if constexpr (std::is_same<decltype(member), i64 * State::*>::value) {
       if (member == &State::geom_dirty) {
         i64* dirty = reinterpret_cast<i64*>(plugin_state + offset);
         for (i64 g = 0; g < size; g++) dirty[g] = 1;
@@ -316,11 +323,19 @@ i64 Instance::Run(const mjModel* m, mjData* d, int mode) {
   // The counters change in every evaluating pass: other values than this instance left are
   // another writer's (mj_resetData, mj_setState, mj_copyData, a pickled mjData).
   bool ours = s.stats[0] == seen_[0] && s.stats[1] == seen_[1] && s.stats[2] == seen_[2];
-  s.fresh[0] = ours ? 0 : 1;
-  if (!ours) ResetCaches();
+  if (!ours) {
+    ResetCaches();
+    s.mech_time[1] = 0.0;  // no previous pass this instance knows of: no predictor
+  }
   i64 status = Forward(m, d, tables_, s, mode);
   for (int i = 0; i < 3; i++) seen_[i] = s.stats[i];
   return status;
+}
+
+void Instance::CopyFrom(const Instance& src) {
+  for (int i = 0; i < 3; i++) seen_[i] = src.seen_[i];
+  work_ = src.work_;  // same sizes: the views in work_state_ stay valid
+  iwork_ = src.iwork_;
 }
 
 namespace {
@@ -350,6 +365,13 @@ void Instance::Release(mjData* d, int instance) {
   Registry().erase(it);
   lock.unlock();
   delete in;
+}
+
+Instance* Instance::Find(const mjData* d, int instance) {
+  auto* in = reinterpret_cast<Instance*>(d->plugin_data[instance]);
+  std::shared_lock lock(registry_mutex);
+  auto it = Registry().find(in);
+  return it != Registry().end() && it->second == d ? in : nullptr;
 }
 
 Instance* Instance::Of(const mjModel* m, mjData* d, int instance, std::string* error) {
@@ -389,6 +411,13 @@ int Init(const mjModel* m, mjData* d, int instance) {
 
 void Destroy(mjData* d, int instance) { Instance::Release(d, instance); }
 
+void Copy(mjData* dest, const mjModel* m, const mjData* src, int instance) {
+  const Instance* from = Instance::Find(src, instance);
+  std::string error;
+  Instance* to = Instance::Of(m, dest, instance, &error);
+  if (from && to) to->CopyFrom(*from);
+}
+
 void Reset(const mjModel* m, mjtNum* plugin_state, void* plugin_data, int instance) {
   (void)plugin_data;  // the caches are emptied at the next pass (State::stamp is zeroed)
   Instance::ResetState(m, instance, plugin_state);
@@ -424,8 +453,7 @@ bool Pass(const mjModel* m, mjData* d, int instance, char* msg, int size) {
   std::string error;
   Instance* in = Instance::Of(m, d, instance, &error);
   if (!in) {  // init failed and said why; MuJoCo's compiler steps such a model anyway
-    std::snprintf(msg, size, "%s: the instance could not be made: %s", kPluginName,
-                  error.c_str());
+    std::snprintf(msg, size, "%s: the instance could not be made: %s", kPluginName, error.c_str());
     return false;
   }
   i64 status = in->Run(m, d, kInstalled);
@@ -458,6 +486,7 @@ void RegisterGranular() {
   plugin.nstate = NState;
   plugin.init = Init;
   plugin.destroy = Destroy;
+  plugin.copy = Copy;
   plugin.reset = Reset;
   plugin.compute = Compute;
   mjp_registerPlugin(&plugin);

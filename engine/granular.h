@@ -40,9 +40,13 @@ class Instance {
   // MuJoCo's pickling of an mjData leaves it) a new one made now; nullptr with the reason in error.
   static Instance* Of(const mjModel* m, mjData* d, int instance, std::string* error);
   // A pass of the engine on d in mode (forward.h); returns its status. A state this instance
-  // did not write last (reset, restored by mj_setState, copied from another mjData) starts
-  // with empty caches and without the previous forward pass's loads, as a new mjData would.
+  // did not write last (reset, or restored by mj_setState) starts as in a new mjData: empty
+  // caches, and the mechanism treatment without its predictor for one pass (the previous
+  // forward pass's qacc it predicts from is not part of MuJoCo's state).
   i64 Run(const mjModel* m, mjData* d, int mode);
+  // mj_copyData: this instance continues src's (its caches and what it last wrote), so a copy
+  // steps exactly as the original.
+  void CopyFrom(const Instance& src);
   // The State of this instance on d, as it is.
   State Bind(const mjModel* m, mjData* d) const;
   // Zeroes the persistent state of instance `instance` of m at plugin_state.
@@ -52,6 +56,8 @@ class Instance {
   // Registers a new instance of d (init) and forgets one (destroy: only d's own is deleted).
   static void Adopt(std::unique_ptr<Instance> in, mjData* d, int instance);
   static void Release(mjData* d, int instance);
+  // The instance registered for d, or nullptr (no new one is made).
+  static Instance* Find(const mjData* d, int instance);
 
   const Tables& tables() const { return tables_; }
   // Number of elements of state array `name` (fields.h), or -1 if there is none.

@@ -39,8 +39,8 @@ Elements ElementsOf(const Tables& t) {
 }
 
 int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const f64* soil,
-               const f64* rot, const f64* pos, const f64* omega, const f64* v_ref,
-               const f64* p_ref, const f64* com, f64* wrench, f64* elem_force, f64* rows) {
+               const f64* rot, const f64* pos, const f64* omega, const f64* v_ref, const f64* p_ref,
+               const f64* com, f64* wrench, f64* elem_force, f64* rows) {
   alignas(64) law::Buf buf;
   alignas(64) quadrature::Held held;
   i64 idx[kChunk];
@@ -109,8 +109,8 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
         depth = surface::Depth(prm, med.surface_grid, soil, px, py, pz);
         if (depth <= -band * ri) continue;
       }
-      if (med.use_region && (px < lo[0] || py < lo[1] || pz < lo[2] || px > hi[0] ||
-                             py > hi[1] || pz > hi[2])) {
+      if (med.use_region &&
+          (px < lo[0] || py < lo[1] || pz < lo[2] || px > hi[0] || py > hi[1] || pz > hi[2])) {
         continue;
       }
       f64 mx = nf[3 * i], my = nf[3 * i + 1], mz = nf[3 * i + 2];
@@ -150,8 +150,8 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       if (dyn) buf[law::kArea][k] = e.area[i];
       k = law::Gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, e.area[i], true);
     }
-    quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm,
-                             med.surface_grid, soil);
+    quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm, med.surface_grid,
+                             soil);
     int nc = 0;
     k = quadrature::Triage(buf, idx, k, later, held, nl, e.area, e.reach, band, &nc);
     for (int j = 0; j < nc; j++) {
@@ -210,8 +210,8 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
   return count;
 }
 
-int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i64 n,
-           const f64* co, i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, f64* out) {
+int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i64 n, const f64* co,
+           i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, f64* out) {
   alignas(64) law::Buf buf;
   i64 idx[kChunk];
   const f64 lam_rho = law::DynamicCoefficient(co, ncoef);
@@ -222,9 +222,8 @@ int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i6
     for (i64 i = 3 * c0; i < 3 * c1; i++) out[i] = 0.0;
     int k = 0;
     for (i64 i = c0; i < c1; i++) {
-      k = law::Gather(buf, idx, k, i, n_hat[3 * i], n_hat[3 * i + 1], n_hat[3 * i + 2],
-                      vel[3 * i], vel[3 * i + 1], vel[3 * i + 2], surface_z - pos[3 * i + 2],
-                      area[i], true);
+      k = law::Gather(buf, idx, k, i, n_hat[3 * i], n_hat[3 * i + 1], n_hat[3 * i + 2], vel[3 * i],
+                      vel[3 * i + 1], vel[3 * i + 2], surface_z - pos[3 * i + 2], area[i], true);
     }
     law::EvaluateModel(buf, k, co, ncoef, alpha_y, zeta);
     if (dyn) {
@@ -261,8 +260,8 @@ void InputFlags(const f64* pos, const f64* normal, const f64* area, const f64* v
 }
 
 // The first element with a bad input: CheckedUnitNormals' code, its index in *index.
-static int FirstBadInput(const f64* pos, const f64* normal, const f64* area, const f64* vel,
-                         i64 n, i64* index) {
+static int FirstBadInput(const f64* pos, const f64* normal, const f64* area, const f64* vel, i64 n,
+                         i64* index) {
   for (i64 i = 0; i < n; i++) {
     *index = i;
     for (int c = 0; c < 3; c++) {
@@ -279,8 +278,8 @@ static int FirstBadInput(const f64* pos, const f64* normal, const f64* area, con
   return kInputOk;
 }
 
-int CheckedUnitNormals(const f64* pos, const f64* normal, const f64* area, const f64* vel,
-                       i64 n, f64* n_hat, i64* index) {
+int CheckedUnitNormals(const f64* pos, const f64* normal, const f64* area, const f64* vel, i64 n,
+                       f64* n_hat, i64* index) {
   // One branch-free pass (a flag is or-ed); only inputs that fail it are searched for the first
   // culprit.
   bool bad = false;

@@ -30,10 +30,10 @@ struct Elements {
 struct Medium {
   const f64* coef;  // (ncoef,) kernel coefficients (Material.kernel_coefficients)
   i64 ncoef;
-  f64 alpha_y;             // generic out-of-plane coefficient
-  f64 zeta;                // [N/m^3]
-  const f64* surface_prm;  // (kPrmSize,) surface.h
-  const f64* surface_grid; // (nrow, ncol) grid heights [m]
+  f64 alpha_y;              // generic out-of-plane coefficient
+  f64 zeta;                 // [N/m^3]
+  const f64* surface_prm;   // (kPrmSize,) surface.h
+  const f64* surface_grid;  // (nrow, ncol) grid heights [m]
   bool use_region;
   const f64* region;  // (2, 3) world box [m]
 };
@@ -51,15 +51,15 @@ Elements ElementsOf(const Tables& t);
 // [start, stop), zero where nothing acts. rows: nullptr, or (n, kRow) quadrature points written
 // for the acting elements instead of their forces (rows of the others are left as they are).
 int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const f64* soil,
-               const f64* rot, const f64* pos, const f64* omega, const f64* v_ref,
-               const f64* p_ref, const f64* com, f64* wrench, f64* elem_force, f64* rows);
+               const f64* rot, const f64* pos, const f64* omega, const f64* v_ref, const f64* p_ref,
+               const f64* com, f64* wrench, f64* elem_force, f64* rows);
 
 // Sets out (n, 3) to the forces [N] on n elements given in the world frame: centroids pos
 // (n, 3) [m], unit normals n_hat (n, 3), areas (n,) [m^2], velocities vel (n, 3) [m/s], under
 // the flat surface at height surface_z [m] (one-point rule). co (ncoef,): Medium's coef.
 // Returns #acting (elements with a nonzero force).
-int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i64 n,
-           const f64* co, i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, f64* out);
+int Forces(const f64* pos, const f64* n_hat, const f64* area, const f64* vel, i64 n, const f64* co,
+           i64 ncoef, f64 alpha_y, f64 zeta, f64 surface_z, f64* out);
 
 // A normal counts as unit if | |n|^2 - 1 | is below this (a few ulp: what normalising gives).
 constexpr f64 kUnitNormalSlack = 4.0 * 2.220446049250313e-16;
@@ -80,8 +80,8 @@ enum InputCode { kInputOk, kBadPos, kBadNormal, kBadArea, kBadVel, kNegativeArea
 // element's force does not depend on the other elements of the call; others are scaled by
 // their largest component before they are normalised, so no finite normal overflows or
 // underflows.
-int CheckedUnitNormals(const f64* pos, const f64* normal, const f64* area, const f64* vel,
-                       i64 n, f64* n_hat, i64* index);
+int CheckedUnitNormals(const f64* pos, const f64* normal, const f64* area, const f64* vel, i64 n,
+                       f64* n_hat, i64* index);
 
 // RFT wrenches of a body along a prescribed trajectory under the flat surface at surface_z
 // [m], no region: out (T, 6) = force [N], moment [N m] about point[t], world frame, for T

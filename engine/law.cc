@@ -24,9 +24,8 @@ static_assert(kExpMid == 0x1.9e213ccd1f964p-2, "the reference's centre");
 constexpr f64 kExpScale = 0x1.7f99ace4f6f11p+0;  // exp(kExpMid)
 constexpr int kExpDegree = 12;
 constexpr f64 kExpTaylor[kExpDegree + 1] = {  // 1 / i!
-    1.0,         1.0,          1.0 / 2,         1.0 / 6,         1.0 / 24,
-    1.0 / 120,   1.0 / 720,    1.0 / 5040,      1.0 / 40320,     1.0 / 362880,
-    1.0 / 3628800, 1.0 / 39916800, 1.0 / 479001600};
+    1.0,        1.0,         1.0 / 2,      1.0 / 6,       1.0 / 24,       1.0 / 120,      1.0 / 720,
+    1.0 / 5040, 1.0 / 40320, 1.0 / 362880, 1.0 / 3628800, 1.0 / 39916800, 1.0 / 479001600};
 
 // log on (1 + u) / (1 - u), u = slope |v23| - shift in f23 (ratio in [0.013, 4.6]): five exact
 // power-of-two steps bring the ratio into [2^-0.5, 2^0.5], then log r = 2 atanh(s),
@@ -55,7 +54,7 @@ constexpr f64 kVnMin = 1e-100;
 inline f64 ExpF1(f64 x) {
   f64 y = (x - kExpMid) * (1.0 / 16.0);
   f64 p = kExpTaylor[kExpDegree];
-  #pragma GCC unroll 16
+#pragma GCC unroll 16
   for (int i = kExpDegree - 1; i >= 0; i--) p = std::fma(p, y, kExpTaylor[i]);
   p = p * p;
   p = p * p;
@@ -68,10 +67,9 @@ inline f64 ExpF1(f64 x) {
 // x3 x1, x1^3, x2^3, x3^3, x1 x2^2, x2 x1^2, x2 x3^2, x3 x2^2, x3 x1^2, x1 x3^2, x1 x2 x3.
 inline f64 Cubic(const f64* p, f64 x1, f64 x2, f64 x3) {
   return p[0] + p[1] * x1 + p[2] * x2 + p[3] * x3 + p[4] * x1 * x1 + p[5] * x2 * x2 +
-         p[6] * x3 * x3 + p[7] * x1 * x2 + p[8] * x2 * x3 + p[9] * x3 * x1 +
-         p[10] * x1 * x1 * x1 + p[11] * x2 * x2 * x2 + p[12] * x3 * x3 * x3 +
-         p[13] * x1 * x2 * x2 + p[14] * x2 * x1 * x1 + p[15] * x2 * x3 * x3 +
-         p[16] * x3 * x2 * x2 + p[17] * x3 * x1 * x1 + p[18] * x1 * x3 * x3 +
+         p[6] * x3 * x3 + p[7] * x1 * x2 + p[8] * x2 * x3 + p[9] * x3 * x1 + p[10] * x1 * x1 * x1 +
+         p[11] * x2 * x2 * x2 + p[12] * x3 * x3 * x3 + p[13] * x1 * x2 * x2 + p[14] * x2 * x1 * x1 +
+         p[15] * x2 * x3 * x3 + p[16] * x3 * x2 * x2 + p[17] * x3 * x1 * x1 + p[18] * x1 * x3 * x3 +
          p[19] * x1 * x2 * x3;
 }
 
@@ -90,10 +88,10 @@ struct Frame {
 inline Frame FrameOf(f64 nx, f64 ny, f64 hx, f64 hy, f64 wx, f64 wy, f64 wz) {
   f64 h2 = std::fma(hx, hx, hy * hy);
   f64 s2 = std::fma(wx, wx, std::fma(wy, wy, wz * wz));
-  f64 big_a = std::sqrt(h2);     // |h|
-  f64 t = std::sqrt(s2 * h2);    // |w| |h|
-  f64 p = std::fma(wx, hy, -(wy * hx));  // (w . e1) |h|, e1 = e2 x z
-  f64 q = std::fma(wx, hx, wy * hy);     // (w . e2) |h|
+  f64 big_a = std::sqrt(h2);                        // |h|
+  f64 t = std::sqrt(s2 * h2);                       // |w| |h|
+  f64 p = std::fma(wx, hy, -(wy * hx));             // (w . e1) |h|, e1 = e2 x z
+  f64 q = std::fma(wx, hx, wy * hy);                // (w . e2) |h|
   f64 r = std::sqrt(std::fma(q, q, wz * wz * h2));  // |w| |h| |v23|
   bool moving = r > kVnMin * t;
   f64 rg = moving ? r : t;
@@ -122,10 +120,10 @@ inline Scalings ScalingsOf(f64 a, f64 vn) {
   // f1 = C1 (tanh(slope |a| - shift) + tanh(shift)), tanh(z) = 1 - 2 / (exp(2z) + 1).
   f64 e1 = ExpF1(std::fma(2.0 * kF1Slope, std::fabs(a), -2.0 * kF1Shift)) + 1.0;
   // f23 = C23 (atanh(u) + atanh(shift)), atanh(u) = log(num / den) / 2.
-  f64 num = std::fma(kF23Slope, vn, 1.0 - kF23Shift);  // 1 + u
+  f64 num = std::fma(kF23Slope, vn, 1.0 - kF23Shift);   // 1 + u
   f64 den = std::fma(-kF23Slope, vn, 1.0 + kF23Shift);  // 1 - u
   f64 lg = 0.0;
-  #pragma GCC unroll 16
+#pragma GCC unroll 16
   for (const LogStep& st : kLogSteps) {
     bool hit = st.below ? num < st.threshold * den : num > st.threshold * den;
     num = hit ? num * st.factor : num;
@@ -135,7 +133,7 @@ inline Scalings ScalingsOf(f64 a, f64 vn) {
   f64 sr = (num - den) * e1 * y;
   f64 s_sq = sr * sr;
   f64 ser = 1.0 / (2 * kLogTerms - 1);
-  #pragma GCC unroll 16
+#pragma GCC unroll 16
   for (int i = kLogTerms - 2; i >= 0; i--) ser = std::fma(ser, s_sq, 1.0 / (2 * i + 1));
   f64 log_r = std::fma(lg, kLn2, 2.0 * sr * ser);
   Scalings out;
@@ -181,8 +179,8 @@ inline i64 Cell(f64 x, f64 x0, f64 inv_h, i64 n, f64* s) {
 
 // Bicubic Hermite interpolation on the four nodes (n00, n01 at (i, j), (i, j + 1); n10, n11
 // at (i + 1, ...)) of one function (value, beta, gamma and cross derivative, scaled by h).
-inline f64 Bicubic(const f64* n00, const f64* n01, const f64* n10, const f64* n11,
-                   const Hermite& b, const Hermite& g) {
+inline f64 Bicubic(const f64* n00, const f64* n01, const f64* n10, const f64* n11, const Hermite& b,
+                   const Hermite& g) {
   // Along gamma at beta nodes i and i + 1: the value and the beta slope.
   f64 v0 = g.w0 * n00[0] + g.d0 * n00[2] + g.w1 * n01[0] + g.d1 * n01[2];
   f64 s0 = g.w0 * n00[1] + g.d0 * n00[3] + g.w1 * n01[1] + g.d1 * n01[3];
@@ -211,7 +209,7 @@ inline f64 Atan2(f64 y, f64 x) {
   f64 t = den > 0.0 ? num / den : 0.0;
   f64 t2 = t * t;
   f64 p = 1.0 / (2 * kAtanTerms - 1);
-  #pragma GCC unroll 32
+#pragma GCC unroll 32
   for (int i = kAtanTerms - 2; i >= 0; i--) {
     p = std::fma(p, t2, (i % 2 ? -1.0 : 1.0) / (2 * i + 1));
   }
@@ -250,7 +248,7 @@ void EvaluateTreers(Buf& buf, int k, const f64* co, f64 ay, f64 zeta) {
     f64 n2 = fr.n2;
     f64 eps = 1.0 - std::fma(n2, n2, nz * nz);
     f64 inv_rho = 1.0;
-    #pragma GCC unroll 16
+#pragma GCC unroll 16
     for (int i = 0; i < kInvTerms - 1; i++) inv_rho = std::fma(inv_rho, eps, 1.0);
     f64 c2 = (nz - n2) * (nz + n2) * inv_rho;
     f64 s2b = -2.0 * nz * n2 * inv_rho;
@@ -387,9 +385,9 @@ void EvaluateAgarwal(Buf& buf, int k, const f64* p) {
     f64 ar = f1 * sb * cp + f2 * cg;
     f64 at = f1 * sb * sp;
     f64 gx = ar * rx + at * tx, gy = ar * ry + at * ty, gz = -f1 * cb - f2 * sg - f3;
-    f64 an = -(gx * nx + gy * ny + gz * nz);  // alpha . (-n)
+    f64 an = -(gx * nx + gy * ny + gz * nz);                      // alpha . (-n)
     f64 ux = gx + an * nx, uy = gy + an * ny, uz = gz + an * nz;  // tangential part
-    bool turn = ux * vx + uy * vy + uz * vz > 0.0;  // turned to oppose the motion
+    bool turn = ux * vx + uy * vy + uz * vz > 0.0;                // turned to oppose the motion
     ux = turn ? -ux : ux;
     uy = turn ? -uy : uy;
     uz = turn ? -uz : uz;

@@ -43,8 +43,8 @@ using Buf = f64[kBufRows][kChunk];
 constexpr f64 kHorizontalPlateNz = 1.0 - 1.0e-3;
 // Fitted scaling functions of the 3D decomposition (Treers et al. 2021, docs/design.md 2.7),
 // f1 = gain (tanh(slope |v1| - shift) + tanh(shift)) / norm, f23 likewise with atanh.
-constexpr f64 kF1Gain = 0.440850096954369, kF1Slope = 3.62263982880971,
-              kF1Shift = 1.60910808139526, kF1Norm = 0.832324700111401;
+constexpr f64 kF1Gain = 0.440850096954369, kF1Slope = 3.62263982880971, kF1Shift = 1.60910808139526,
+              kF1Norm = 0.832324700111401;
 constexpr f64 kF23Gain = 1.99392673405210, kF23Slope = 1.61146827229181,
               kF23Shift = 0.973746396532650, kF23Norm = 5.81083560370960;
 // Velocities are rescaled in Gather when |w|^2 leaves this range, so that the products of up to
@@ -108,8 +108,8 @@ inline f64 Min(f64 a, f64 b) { return b < a ? b : a; }
 // and the depth integral W [m^3] as area); world frame. The velocity is rescaled only when
 // |w|^2 leaves [kW2Min, kW2Max], and h is normalised here only for nearly horizontal plates
 // (rare), whose frame comes from the horizontal velocity, or world x if there is none.
-inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 wx, f64 wy,
-                  f64 wz, f64 depth, f64 area, bool inside) {
+inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 wx, f64 wy, f64 wz,
+                  f64 depth, f64 area, bool inside) {
   f64 s2 = wx * wx + wy * wy + wz * wz;
   if (!(kW2Min <= s2 && s2 <= kW2Max)) {
     f64 m = Max(Max(std::fabs(wx), std::fabs(wy)), std::fabs(wz));

@@ -101,8 +101,7 @@ f64 StickFraction(const f64* stick, const f64* twist, const f64* other, f64 mass
   return 1.0 < lam ? 1.0 : lam;
 }
 
-void TransverseBasis(const f64* twist, f64 mass, const f64* iw, const f64* mm, f64 n,
-                     f64* basis) {
+void TransverseBasis(const f64* twist, f64 mass, const f64* iw, const f64* mm, f64 n, f64* basis) {
   for (int c = 0; c < 6; c++) basis[c] = twist[c] / n;
   // best stays 0 only if every remainder is NaN (the reference leaves it unset then).
   f64 axis[6], res[6], best[6] = {0.0};
@@ -275,8 +274,8 @@ bool ImplicitWrench(const mjModel* m, const mjData* d, const Tables& t, State& s
 }
 
 i64 StickOrSlip(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
-                const Body& body, const f64* v_free, const f64* om_free, f64 dt, bool semi,
-                f64* w, bool keeps) {
+                const Body& body, const f64* v_free, const f64* om_free, f64 dt, bool semi, f64* w,
+                bool keeps) {
   const f64 mass = body.mass;
   f64 iomf[3];
   Mv(body.iw, 3, 3, om_free, iomf);
@@ -311,8 +310,8 @@ i64 StickOrSlip(const mjModel* m, const mjData* d, const Tables& t, State& s, in
   return kStick;
 }
 
-i64 TreatBody(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
-              const f64* user, f64 dt, bool semi, f64* w, f64* ab, f64* tw) {
+i64 TreatBody(const mjModel* m, const mjData* d, const Tables& t, State& s, int k, const f64* user,
+              f64 dt, bool semi, f64* w, f64* ab, f64* tw) {
   int b = static_cast<int>(t.tbody_bodyid[k]);
   if (!HasInertia(m, b)) return kPure;
   const f64 reach = t.reach;

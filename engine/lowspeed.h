@@ -135,8 +135,7 @@ f64 StickFraction(const f64* stick, const f64* twist, const f64* other, f64 mass
 // M-orthogonal to it (pivoted Gram-Schmidt over the coordinate axes scaled to unit M-norm,
 // taking at each round the axis with the largest remainder). mm (6x6) the body's inertia;
 // n = |twist|_M.
-void TransverseBasis(const f64* twist, f64 mass, const f64* iw, const f64* mm, f64 n,
-                     f64* basis);
+void TransverseBasis(const f64* twist, f64 mass, const f64* iw, const f64* mm, f64 n, f64* basis);
 
 // World inertia iw = X diag(I) X^T about the CoM and its inverse ii (3x3 each), from the
 // inertial frame x (3x3, ximat) and the principal moments inertia (3) [kg m^2].
@@ -180,8 +179,8 @@ bool ImplicitWrench(const mjModel* m, const mjData* d, const Tables& t, State& s
 // (keeps) and w adds no energy; else stick. Returns the decision; sets w (6). v_free, om_free
 // (3): the free motion's end twist.
 i64 StickOrSlip(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
-                const Body& body, const f64* v_free, const f64* om_free, f64 dt, bool semi,
-                f64* w, bool keeps);
+                const Body& body, const f64* v_free, const f64* om_free, f64 dt, bool semi, f64* w,
+                bool keeps);
 
 // The treatment of tagged body k (a free rigid body); returns its decision.
 //
@@ -189,8 +188,8 @@ i64 StickOrSlip(const mjModel* m, const mjData* d, const Tables& t, State& s, in
 // wrench on the body. ab (2): set to |xi|^2_M and <d_xi, xi>_M (the motion keeps its sense over
 // n steps if ab[0] + n ab[1] > 0). tw (6): set to the body's twist. semi: positions advance with
 // the step's end velocity (every integrator but RK4; StepWork).
-i64 TreatBody(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
-              const f64* user, f64 dt, bool semi, f64* w, f64* ab, f64* tw);
+i64 TreatBody(const mjModel* m, const mjData* d, const Tables& t, State& s, int k, const f64* user,
+              f64 dt, bool semi, f64* w, f64* ab, f64* tw);
 
 // The treatment of every treatable tagged body with a geom in play.
 //

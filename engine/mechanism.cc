@@ -32,8 +32,8 @@ f64 Reference(const Tables& t, const State& s, i64 k, int r) {
 
 // The configuration key of SameConfiguration, entry q: the number of bodies in the medium,
 // their rows (-1 padded), cdof, then per row its CoM and its root's subtree CoM (0 padded).
-f64 ConfigurationKey(const mjModel* m, const mjData* d, const Tables& t, const i64* rows,
-                     int n, int q) {
+f64 ConfigurationKey(const mjModel* m, const mjData* d, const Tables& t, const i64* rows, int n,
+                     int q) {
   int nk = t.ntbody, nv = m->nv;
   if (q == 0) return n;
   q -= 1;
@@ -124,8 +124,8 @@ void BodyJacobian(const mjModel* m, const mjData* d, const Tables& t, int k, int
 bool PredictorValid(const mjModel* m, const mjData* d, State& s, bool same_time) {
   if (same_time) return s.mech_time[2] == 1.0;
   f64 time = d->time, dt = m->opt.timestep, t0 = s.mech_time[0];
-  bool ok = s.mech_time[1] == 1.0 &&
-            std::fabs(time - (t0 + dt)) <= 1e-9 * dt + 1e-12 * std::fabs(time);
+  bool ok =
+      s.mech_time[1] == 1.0 && std::fabs(time - (t0 + dt)) <= 1e-9 * dt + 1e-12 * std::fabs(time);
   s.mech_time[0] = time;
   s.mech_time[1] = 1.0;
   s.mech_time[2] = ok ? 1.0 : 0.0;
@@ -196,13 +196,12 @@ f64 ActuatorForce(const mjModel* m, const mjData* d, const Tables& t, int a) {
 
 void ActuatorForces(const mjModel* m, const mjData* d, const Tables& t, f64* out) {
   for (int a = 0; a < m->nu; a++) {
-    out[a] = t.actuator_affine[a] ? ActuatorForce(m, d, t, a)
-                                  : std::numeric_limits<f64>::quiet_NaN();
+    out[a] =
+        t.actuator_affine[a] ? ActuatorForce(m, d, t, a) : std::numeric_limits<f64>::quiet_NaN();
   }
 }
 
-void ActuatorUpdate(const mjModel* m, const mjData* d, const Tables& t, const State& s,
-                    f64* tau) {
+void ActuatorUpdate(const mjModel* m, const mjData* d, const Tables& t, const State& s, f64* tau) {
   for (int a = 0; a < m->nu; a++) {
     if (!t.actuator_affine[a]) continue;
     f64 df = ActuatorForce(m, d, t, a) - s.mech_in_force[a];
@@ -231,8 +230,7 @@ bool SameConfiguration(const mjModel* m, const mjData* d, const Tables& t, State
   return same;
 }
 
-bool Setup(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows,
-           int n) {
+bool Setup(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n) {
   int nv = m->nv;
   f64 dt = m->opt.timestep;
   f64* lo = s.mech_L;
@@ -282,8 +280,8 @@ f64 RowDot(const f64* jac, int r, const f64* x, int nv) {
   return acc;
 }
 
-void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows,
-              int n, i64* code) {
+void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
+              i64* code) {
   int nv = m->nv;
   f64 dt = m->opt.timestep;
   const f64* u = s.mech_vec;
@@ -388,8 +386,8 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
   return true;
 }
 
-int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows,
-              int n, const i64* code, const f64* out, f64* slip) {
+int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
+              const i64* code, const f64* out, f64* slip) {
   int lda = 6 * t.ntbody;
   f64 dt = m->opt.timestep;
   int worst = -1;
@@ -472,16 +470,12 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
   bool same_time = s.mech_time[1] == 1.0 && d->time == s.mech_time[0];
   bool valid = PredictorValid(m, d, s, same_time);
   if (!same_time) {
-    // A state another writer left (s.fresh: reset, restored, copied) comes without the previous
-    // forward pass's qacc and actuator_force (mjData holds another state's): read as a new
-    // mjData holds them, zero.
-    bool known = !s.fresh[0];
     for (int i = 0; i < nv; i++) {
-      s.mech_in[i] = known ? d->qacc[i] : 0.0;
+      s.mech_in[i] = d->qacc[i];
       s.mech_in[nv + i] = s.mech_tau[i];
     }
     for (int i = 0; i < 6 * nk; i++) s.mech_in_prev[i] = s.mech_prev[i];
-    for (int a = 0; a < m->nu; a++) s.mech_in_force[a] = known ? d->actuator_force[a] : 0.0;
+    for (int a = 0; a < m->nu; a++) s.mech_in_force[a] = d->actuator_force[a];
     for (int k = 0; k < nk; k++) s.mech_in_held[k] = s.mech_held[k];
   }
   // mech_held and mech_tau are dead from here to the end, where they are written: the bodies

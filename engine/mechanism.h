@@ -125,8 +125,7 @@ void ActuatorForces(const mjModel* m, const mjData* d, const Tables& t, f64* out
 // this state's force (ActuatorForce) minus the previous pass's (s.mech_in_force), through this
 // state's moments (sparse rows of d->actuator_moment). A stiff servo's force then follows the
 // step it responds to.
-void ActuatorUpdate(const mjModel* m, const mjData* d, const Tables& t, const State& s,
-                    f64* tau);
+void ActuatorUpdate(const mjModel* m, const mjData* d, const Tables& t, const State& s, f64* tau);
 
 // True if the bodies in the medium (rows[:n]) and the configuration (cdof, their CoMs and their
 // roots' subtree CoMs, within kConfigurationReuse) are those of the stored factors (s.mech_cfg);
@@ -153,8 +152,8 @@ f64 RowDot(const f64* jac, int r, const f64* x, int nv);
 
 // code[rows[a]] = kStick for the bodies step 2 does not leave to the pure model (slow, or
 // reversing within `reach` steps); the others are left as they are. Uses s.mech_vec row 1.
-void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows,
-              int n, i64* code);
+void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
+              i64* code);
 
 // Wrenches out[a] (n x 6) of the held bodies (step 3), the others' wrenches given in out. The
 // reference of a held body (W_ref) is its wrench from the pass that read the loads if it was
@@ -165,8 +164,8 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
 
 // Step 4: the held body whose hold the medium fails to supply by most, its slip wrench in
 // slip (6); -1 if every hold is supplied.
-int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows,
-              int n, const i64* code, const f64* out, f64* slip);
+int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
+              const i64* code, const f64* out, f64* slip);
 
 // out (6) = the RFT wrench on tagged body k moving with twist (6): reused from the last
 // evaluation (s.mech_R) while the body and the twist's direction are where they were then

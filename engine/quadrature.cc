@@ -141,9 +141,9 @@ Part Cut(f64 d0, f64 d1, f64 d2, f64 f0, f64 f1, f64 f2, f64 area) {
 // 1 at the band's edge, where an element leaves the clipped path: an element that nothing clips
 // then gets exactly the one-point rule's force, and the force is continuous in the state (the
 // implicit step differentiates it).
-void Blend(const f64* pr, const f64* nb, f64 area, f64 depth0, f64 band_r, f64 d0, f64 d1,
-           f64 d2, f64 w, f64 l0, f64 l1, f64 l2, const f64* rot, const f64* p,
-           const f64* omega, const f64* v_ref, const f64* p_ref, Point* out) {
+void Blend(const f64* pr, const f64* nb, f64 area, f64 depth0, f64 band_r, f64 d0, f64 d1, f64 d2,
+           f64 w, f64 l0, f64 l1, f64 l2, const f64* rot, const f64* p, const f64* omega,
+           const f64* v_ref, const f64* p_ref, Point* out) {
   f64 sd = d0 + d1 + d2;
   f64 ramp = band_r > 0.0 ? law::Min(1.0, law::Max(0.0, sd / (3.0 * band_r))) : 1.0;
   f64 g0 = l0, g1 = l1, g2 = l2;  // the point's barycentric weights, before the ramp
@@ -277,8 +277,7 @@ int Triage(law::Buf& buf, i64* idx, int k, i64* later, Held& held, int nl, const
 }
 
 Point ClipHeld(int j, i64 i, const Held& held, const f64* patch, const f64* normal, f64 area,
-               f64 band_r, const f64* rot, const f64* omega, const f64* v_ref,
-               const f64* p_ref) {
+               f64 band_r, const f64* rot, const f64* omega, const f64* v_ref, const f64* p_ref) {
   f64 d0 = held[kHeldD][j], d1 = held[kHeldD + 1][j], d2 = held[kHeldD + 2][j];
   f64 s0 = held[kHeldS][j], s1 = held[kHeldS + 1][j], s2 = held[kHeldS + 2][j];
   Part part;

@@ -37,8 +37,14 @@ constexpr f64 kUnevenReach = 2.0;
 // after a chunk's one-point pass: depth at the centroid [m]; point (3) [m], normal (3) and
 // velocity (3) [m/s] of the one-point rule (world frame); corner depths (3) [m]; corner n . v
 // (3) [m/s].
-enum HeldRow { kHeldDepth = 0, kHeldPoint = 1, kHeldNormal = 4, kHeldVel = 7, kHeldD = 10,
-               kHeldS = 13 };
+enum HeldRow {
+  kHeldDepth = 0,
+  kHeldPoint = 1,
+  kHeldNormal = 4,
+  kHeldVel = 7,
+  kHeldD = 10,
+  kHeldS = 13
+};
 constexpr int kHeld = 16;
 using Held = f64[kHeld][law::kChunk];
 
@@ -72,8 +78,7 @@ struct Point {
 // body-frame unit normals; band_r [m] the clipping band; the body at rot (9) body -> world,
 // moving with omega (3) [rad/s] and v_ref (3) [m/s] at the world point p_ref (3).
 Point ClipHeld(int j, i64 i, const Held& held, const f64* patch, const f64* normal, f64 area,
-               f64 band_r, const f64* rot, const f64* omega, const f64* v_ref,
-               const f64* p_ref);
+               f64 band_r, const f64* rot, const f64* omega, const f64* v_ref, const f64* p_ref);
 
 }  // namespace mjrft::quadrature
 

@@ -64,8 +64,7 @@ void ReadModes(const Tables& t, const f64* rec, i64* keep, i64* frz);
 // Records each tagged body's mode for the later stages and its stage-1 twist and implicit
 // correction frozen (ntbody, 12), from its decision (ntbody; lowspeed::kImplicit: kFrozen) and
 // slow flag (ntbody; kHold).
-void WriteModes(const Tables& t, f64* rec, const i64* decision, const i64* slow,
-                const f64* frozen);
+void WriteModes(const Tables& t, f64* rec, const i64* decision, const i64* slow, const f64* frozen);
 
 // True if tagged body k (record block blk (kRk4Body)) is a free body its RK4 step evaluates per
 // stage, which the energy guard watches.

@@ -134,8 +134,8 @@ inline Vertex Free(const f64* grid, const f64* soil, i64 oh, const f64* floor, i
 // Settles free vertex i (row r, column c, height hi, floor fi) with its neighbour at
 // (r + a, c + b) (limit lim); if material moved, queues both.
 inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets& o,
-                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* seen, i64 i,
-                       i64 r, i64 c, f64 hi, f64 fi, i64 a, i64 b) {
+                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* seen, i64 i, i64 r,
+                       i64 c, f64 hi, f64 fi, i64 a, i64 b) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   i64 rr = r + a, cc = c + b;
   if (rr < 1 || rr > nrow - 2 || cc < 1 || cc > ncol - 2) return;
@@ -150,8 +150,8 @@ inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets
 }
 
 // The eight neighbours of a vertex: row step, column step, index of the limit (x, y, diagonal).
-constexpr int kNeighbours[8][3] = {{0, 1, 0},  {0, -1, 0},  {1, 0, 1},  {-1, 0, 1},
-                                   {1, 1, 2},  {-1, -1, 2}, {1, -1, 2}, {-1, 1, 2}};
+constexpr int kNeighbours[8][3] = {{0, 1, 0}, {0, -1, 0},  {1, 0, 1},  {-1, 0, 1},
+                                   {1, 1, 2}, {-1, -1, 2}, {1, -1, 2}, {-1, 1, 2}};
 // The sweep's pairs of a vertex, each pair once: right, up, up-right, up-left.
 constexpr int kSweep[4][3] = {{0, 1, 0}, {1, 0, 1}, {1, 1, 2}, {1, -1, 2}};
 
@@ -166,8 +166,8 @@ void Union(f64* box, f64 r0, f64 r1, f64 c0, f64 c1) {
   }
 }
 
-int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot,
-              const f64* pos, i64 k, f64* floor, i64* owner, f64* box, f64 top) {
+int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot, const f64* pos,
+              i64 k, f64* floor, i64* owner, f64* box, f64 top) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   f64 x0 = prm[kX0], y0 = prm[kY0], dx = prm[kDx], dy = prm[kDy];
   int done = 0;
@@ -186,11 +186,11 @@ int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* r
     if (twice >= 0.0) continue;
     done++;
     i64 c0 = std::max<i64>(0, static_cast<i64>(std::ceil((std::min({ax, bx, cx}) - x0) / dx)));
-    i64 c1 = std::min<i64>(ncol - 1,
-                           static_cast<i64>(std::floor((std::max({ax, bx, cx}) - x0) / dx)));
+    i64 c1 =
+        std::min<i64>(ncol - 1, static_cast<i64>(std::floor((std::max({ax, bx, cx}) - x0) / dx)));
     i64 r0 = std::max<i64>(0, static_cast<i64>(std::ceil((std::min({ay, by, cy}) - y0) / dy)));
-    i64 r1 = std::min<i64>(nrow - 1,
-                           static_cast<i64>(std::floor((std::max({ay, by, cy}) - y0) / dy)));
+    i64 r1 =
+        std::min<i64>(nrow - 1, static_cast<i64>(std::floor((std::max({ay, by, cy}) - y0) / dy)));
     f64 inv = 1.0 / twice;
     for (i64 r = r0; r <= r1; r++) {
       f64 qy = y0 + r * dy - ay;
@@ -260,8 +260,7 @@ Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 }
 
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
-             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats,
-             i64* work) {
+             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   f64 vh = std::hypot(v[0], v[1]);
   f64 s = vh + std::abs(v[2]) > 0.0 ? vh / (vh + std::abs(v[2])) : 0.0;

@@ -64,7 +64,12 @@ constexpr i64 kMaxVertices = 2000000;
 // Slots of soil_stats: updates, volume excavated [m^3], volume that found no rim [m^3], updates
 // whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring.
 enum SoilStat {
-  kStatUpdates, kStatExcavated, kStatUnplaced, kStatUnrelaxed, kStatRasterised, kStatEdge
+  kStatUpdates,
+  kStatExcavated,
+  kStatUnplaced,
+  kStatUnrelaxed,
+  kStatRasterised,
+  kStatEdge
 };
 static_assert(kStatEdge + 1 == kNSoilStats, "soil_stats slots");
 // owner's value for a vertex waiting in the relaxation's queue (deposition is done by then, and
@@ -80,8 +85,8 @@ void Union(f64* box, f64 r0, f64 r1, f64 c0, f64 c1);
 // triangle lower than it, the triangle's height there, and owner the intruder's index k; box
 // grows to cover those vertices. Triangles whose lowest corner is at or above top [m] are
 // skipped. Returns the triangles rasterised.
-int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot,
-              const f64* pos, i64 k, f64* floor, i64* owner, f64* box, f64 top);
+int Footprint(const f64* prm, const f64* vert, i64 start, i64 stop, const f64* rot, const f64* pos,
+              i64 k, f64* floor, i64* owner, f64* box, f64 top);
 
 // What Excavate cut: volume [m^3] (-1: a floor lies below the medium's bottom, 0: nothing),
 // the (x, y) of its centroid [m] and the velocity v (3) [m/s] of the intruder's point there.
@@ -107,8 +112,7 @@ Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 // is counted (kStatUnplaced). work (nrow * ncol, the relaxation's queue, free until then)
 // holds the rim's weights as doubles while they are summed and spent.
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
-             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats,
-             i64* work);
+             const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work);
 
 // Relaxes the surface from the vertices of box until no pair of free neighbouring vertices is
 // steeper than the angle of repose, or the work budget is spent; returns true if it converged.

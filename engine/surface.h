@@ -19,9 +19,7 @@ namespace mjrft::surface {
 constexpr int kFlat = 0, kPlane = 1, kGrid = 2, kSoil = 3;
 // Slots of prm; kSoil only: kTanRepose (tangent of the angle of repose), kEvery (steps between
 // updates of the ground).
-enum Prm {
-  kKind, kZ0, kGx, kGy, kX0, kY0, kDx, kDy, kNcol, kNrow, kZmax, kTanRepose, kEvery
-};
+enum Prm { kKind, kZ0, kGx, kGy, kX0, kY0, kDx, kDy, kNcol, kNrow, kZmax, kTanRepose, kEvery };
 // Head of a soil block: rise of the highest point above prm[kZmax] [m]; 1 once the grid
 // followed a configuration; its time [s]; the vertex box (r0, r1, c0, c1) still relaxing; the
 // box of the intruders' last footprints. Then the offsets of h and of c [m] and the memory p

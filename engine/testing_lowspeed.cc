@@ -15,8 +15,8 @@ MJRFT_API f64 mjrft_test_m_dot(const f64* a, const f64* b, f64 mass, const f64* 
 
 MJRFT_API void mjrft_test_solve6(f64* a, f64* rhs, f64* x) { mjrft::lowspeed::Solve6(a, rhs, x); }
 
-MJRFT_API f64 mjrft_test_step_work(const f64* w, const f64* twist, const f64* end,
-                                   const f64* other, f64 mass, f64 dt, int semi) {
+MJRFT_API f64 mjrft_test_step_work(const f64* w, const f64* twist, const f64* end, const f64* other,
+                                   f64 mass, f64 dt, int semi) {
   return mjrft::lowspeed::StepWork(w, twist, end, other, mass, dt, semi != 0);
 }
 
@@ -25,8 +25,8 @@ MJRFT_API f64 mjrft_test_stick_fraction(const f64* stick, const f64* twist, cons
   return mjrft::lowspeed::StickFraction(stick, twist, other, mass, n2, dt, semi != 0);
 }
 
-MJRFT_API void mjrft_test_transverse_basis(const f64* twist, f64 mass, const f64* iw,
-                                           const f64* mm, f64 n, f64* basis) {
+MJRFT_API void mjrft_test_transverse_basis(const f64* twist, f64 mass, const f64* iw, const f64* mm,
+                                           f64 n, f64* basis) {
   mjrft::lowspeed::TransverseBasis(twist, mass, iw, mm, n, basis);
 }
 
@@ -34,9 +34,8 @@ MJRFT_API void mjrft_test_world_inertia(const f64* x, const f64* inertia, f64* i
   mjrft::lowspeed::WorldInertia(x, inertia, iw, ii);
 }
 
-MJRFT_API int mjrft_test_adds_no_energy(const f64* w, const f64* twist, const f64* other,
-                                        f64 mass, const f64* iw, const f64* ii, f64 dt,
-                                        int semi) {
+MJRFT_API int mjrft_test_adds_no_energy(const f64* w, const f64* twist, const f64* other, f64 mass,
+                                        const f64* iw, const f64* ii, f64 dt, int semi) {
   mjrft::lowspeed::Body body;
   for (int c = 0; c < 6; c++) {
     body.twist[c] = twist[c];
@@ -66,8 +65,7 @@ MJRFT_API int mjrft_test_stage_held(f64 time, f64 timestep, f64* rec) {
   return mjrft::rk4::StageHeld(time, timestep, rec);
 }
 
-MJRFT_API void mjrft_test_read_modes(const mjrft::Tables* t, const f64* rec, i64* keep,
-                                     i64* frz) {
+MJRFT_API void mjrft_test_read_modes(const mjrft::Tables* t, const f64* rec, i64* keep, i64* frz) {
   mjrft::rk4::ReadModes(*t, rec, keep, frz);
 }
 

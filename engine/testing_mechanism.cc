@@ -20,8 +20,8 @@ MJRFT_API void mjrft_test_mech_cho_solve(const f64* lower, int lda, int n, f64* 
   mjrft::mechanism::ChoSolve(lower, lda, n, x);
 }
 
-MJRFT_API void mjrft_test_actuator_forces(const mjModel* m, const mjData* d,
-                                          const mjrft::Tables* t, f64* out) {
+MJRFT_API void mjrft_test_actuator_forces(const mjModel* m, const mjData* d, const mjrft::Tables* t,
+                                          f64* out) {
   mjrft::mechanism::ActuatorForces(m, d, *t, out);
 }
 

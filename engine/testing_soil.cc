@@ -35,10 +35,9 @@ MJRFT_API void mjrft_test_soil_excavate(const f64* prm, const f64* grid, f64* so
   for (int c = 0; c < 6; c++) out[c] = row[c];
 }
 
-MJRFT_API void mjrft_test_soil_deposit(const f64* prm, const f64* grid, f64* soil,
-                                       const f64* floor, const i64* owner, const f64* box, i64 k,
-                                       f64 vol, f64 mx, f64 my, const f64* v, f64* stats,
-                                       i64* work) {
+MJRFT_API void mjrft_test_soil_deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor,
+                                       const i64* owner, const f64* box, i64 k, f64 vol, f64 mx,
+                                       f64 my, const f64* v, f64* stats, i64* work) {
   mjrft::soil::Deposit(prm, grid, soil, floor, owner, box, k, vol, mx, my, v, stats, work);
 }
 

@@ -116,8 +116,6 @@ class Bridge:
         for kind, name in state_arrays():
             if name == "xfrc_last":  # the engine's own record; the numba pass has none
                 src = np.full_like(fd.user, np.nan)
-            elif name == "fresh":  # the numba pass always reads the previous qacc
-                src = np.zeros(1, dtype=np.int64)
             else:
                 src = st.userdata if name == "soil" else getattr(fd, name)
             a = np.array(src, dtype=_TYPES[kind][1], order="C", copy=True) if copy else src

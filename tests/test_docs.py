@@ -3,7 +3,8 @@
 * every ```python block of docs/*.md runs, the blocks of one page in order in one namespace, in a
   temporary working directory that has the repository's models/ (a block whose first line is
   ``# not run`` is skipped);
-* every ```xml block of docs/*.md compiles, builds a GranularField and steps;
+* every ```xml block of docs/*.md loads with the engine (mjrft.load_model), builds a
+  GranularField and steps;
 * every relative link of README.md, docs/*.md, benchmarks/RESULTS.md and envs/README.md points to
   an existing file, and its #anchor to a heading there;
 * every citation of a docs page in the code (``docs/stability.md, "RK4"``,
@@ -22,6 +23,7 @@ import mujoco
 import numpy as np
 import pytest
 
+import mjrft
 from mjrft import GranularField
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,13 +65,13 @@ def test_python_blocks_run(doc, tmp_path, monkeypatch):
 @pytest.mark.parametrize("doc", [d for d in DOCS if blocks(d, "xml")], ids=lambda d: d.name)
 def test_xml_blocks_compile_and_step(doc):
     for xml in blocks(doc, "xml"):
-        model = mujoco.MjModel.from_xml_string(xml)
+        model = mjrft.load_model(xml)
         field = GranularField(model)
         data = mujoco.MjData(model)
-        with field.installed():
-            for _ in range(50):
-                mujoco.mj_step(model, data)
+        for _ in range(50):
+            mujoco.mj_step(model, data)
         assert np.all(np.isfinite(data.qpos))
+        assert field.stats_of(data)["calls"] == 50
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))

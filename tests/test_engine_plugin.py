@@ -260,6 +260,24 @@ def test_a_restored_state_steps_as_a_new_mjdata_in_a_mechanism():
     np.testing.assert_array_equal(got, run(fresh))
 
 
+def test_a_copied_robot_steps_exactly_as_the_original():
+    # mj_copyData carries qacc, and the engine's copy callback the instance's caches and record:
+    # the copy's mechanism treatment continues with its predictor
+    from mjrft.app.simulate import resolve_model
+
+    model = mjrft.load_model(resolve_model("hexapod_sand"))
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    for _ in range(100):
+        mujoco.mj_step(model, data)
+    twin = copy.copy(data)
+    for d in (data, twin):
+        for _ in range(100):
+            mujoco.mj_step(model, d)
+    np.testing.assert_array_equal(twin.qpos, data.qpos)
+    np.testing.assert_array_equal(twin.plugin_state, data.plugin_state)
+
+
 def test_a_pickled_data_gets_its_own_engine_instance():
     # MuJoCo's pickling of an MjData copies plugin_data's raw pointers: the copy must get an
     # instance of its own (no shared work arrays, no double free when both are deleted)

@@ -189,7 +189,9 @@ class GranularField:
     def _check_data(self, data: mujoco.MjData) -> None:
         m = self.model
         if (data.plugin_state.shape[0], data.xpos.shape[0], data.qpos.shape[0]) != (
-            m.npluginstate, m.nbody, m.nq
+            m.npluginstate,
+            m.nbody,
+            m.nq,
         ):
             raise ValueError(
                 "this MjData does not belong to the field's model (its sizes differ): make it "
