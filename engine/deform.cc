@@ -11,7 +11,7 @@
 namespace mjrft::deform {
 namespace {
 
-// An empty vertex box's bounds (numba's float(np.iinfo(np.int32).max)).
+// An empty vertex box's bounds (the largest int32, as a double).
 constexpr f64 kBig = static_cast<f64>(INT32_MAX);
 
 void Empty(f64* box) {

@@ -1,8 +1,8 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
 // The deforming ground's update on one mjData: the intruders' footprints at the current
-// configuration, then excavation, deposition and relaxation (soil.h; mjrft.field.deform states
-// the same in Python).
+// configuration, then excavation, deposition and relaxation (soil.h;
+// docs/terrain.md).
 //
 // The pass runs it once per configuration, before the forces, at the first pass of a new time
 // (RK4's later stages and repeated passes at one time do not move the ground), so the forces of

@@ -15,6 +15,9 @@
 #include <utility>
 
 #include <mujoco/mjplugin.h>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "forward.h"
 
@@ -318,7 +321,36 @@ void Instance::ResetCaches() {
   }
 }
 
+namespace {
+
+// Subnormal numbers flushed to zero for the length of a pass, the caller's floating-point mode
+// restored after it. Why: a body the treatment holds keeps a residue of its twist of ~1e-318
+// (the stick cancels it to rounding), and arithmetic on subnormals costs ~100x on x86: a resting
+// sphere's steps took 1.9 ms instead of 80 us. Values below 2.2e-308 carry no physics.
+class FlushSubnormals {
+ public:
+  FlushSubnormals() {
+#if defined(__SSE2__)
+    saved_ = _mm_getcsr();
+    _mm_setcsr(saved_ | 0x8040);  // FTZ (bit 15) and DAZ (bit 6)
+#endif
+  }
+  ~FlushSubnormals() {
+#if defined(__SSE2__)
+    _mm_setcsr(saved_);
+#endif
+  }
+  FlushSubnormals(const FlushSubnormals&) = delete;
+  FlushSubnormals& operator=(const FlushSubnormals&) = delete;
+
+ private:
+  unsigned saved_ = 0;
+};
+
+}  // namespace
+
 i64 Instance::Run(const mjModel* m, mjData* d, int mode) {
+  FlushSubnormals flush;
   State s = Bind(m, d);
   // The counters change in every evaluating pass: other values than this instance left are
   // another writer's (mj_resetData, mj_setState, mj_copyData, a pickled mjData).

@@ -1,6 +1,6 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
-// Layout (mjrft.core.kernel; chosen from measurements of the reference on a 2-core machine):
+// Layout (chosen from measurements on a 2-core machine, benchmarks/kernel.py):
 //
 // 1. BodyWrench only: a pass puts a chunk's centroids, normals and velocities in the world
 //    frame; an element the quadrature's bounds cannot clear is held aside, and after the pass

@@ -1,6 +1,7 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
-// The RFT element law on gathered elements (mjrft.core.kernel, mjrft.core.agarwal): the force
+// The RFT element law on gathered elements (docs/design.md section 2; mjrft.core.agarwal for the
+// 3D-RFT parameters): the force
 // per element of a chunk whose elements were written, structure of arrays, into the rows of a
 // scratch buffer (Gather). Three coefficient forms (FormOf): Treers, Cao & Stuart 2021 on the 18
 // combined Fourier coefficients of Li 2013's media (docs/design.md section 2) and the 3D-RFT of
@@ -13,9 +14,9 @@
 // formed (their sines and cosines are normalised vector components), the Fourier sums follow by
 // angle addition, and tanh / atanh of f1 / f23 come from exp and log polynomials on their
 // bounded arguments (libm's exp and log are scalar calls). Per element: 3 square roots and 2
-// divisions, the rest multiply-adds. Every multiply-add that the reference fuses is std::fma
-// here, and no other is fused (-ffp-contract=off), so results equal the numba kernel's bit for
-// bit.
+// divisions, the rest multiply-adds. Each multiply-add written std::fma is fused and no other
+// is (-ffp-contract=off), so results do not depend on the compiler's choices nor on an
+// element's slot in a chunk.
 
 #ifndef MJRFT_ENGINE_LAW_H_
 #define MJRFT_ENGINE_LAW_H_

@@ -215,8 +215,8 @@ void ActuatorUpdate(const mjModel* m, const mjData* d, const Tables& t, const St
 
 bool SameConfiguration(const mjModel* m, const mjData* d, const Tables& t, State& s,
                        const i64* rows, int n) {
-  // The key is compared entry by entry as it is computed, then written only if it changed (the
-  // numba code builds it in a temporary array; here nothing is allocated).
+  // The key is compared entry by entry as it is computed, then written only if it changed
+  // (nothing is allocated in a pass).
   f64* cfg = s.mech_cfg;
   int size = 1 + t.ntbody + 6 * m->nv + 6 * t.ntbody;
   bool same = cfg[0] >= 0.0;
@@ -319,7 +319,7 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
   int nv = m->nv, lda = 6 * t.ntbody;
   f64 dt = m->opt.timestep;
   const f64* u = s.mech_vec;
-  // The held rows (idx of the numba code) are those of the held bodies in order: h of them.
+  // The held rows are those of the held bodies in order: h of them.
   int h = 0;
   for (int a = 0; a < n; a++) h += code[rows[a]] == kStick ? 6 : 0;
   if (h == 0) return true;
@@ -515,7 +515,7 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
     code[rows[a]] = kSlip;
     for (int r = 0; r < 6; r++) out[6 * a + r] = slip[r];
   }
-  // What the field applies, in the numba code's order of additions.
+  // What the field applies, in tests/field_reference.py's order of additions.
   for (int i = 0; i < nv; i++) s.mech_tau[i] = 0.0;
   for (int a = 0; a < n; a++) {
     for (int r = 0; r < 6; r++) {

@@ -1,8 +1,8 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
 // Low-speed treatment of intruding bodies in mechanisms (legs, wheels, rig carriages): a joint
-// stick/slip step over the mechanism's generalized coordinates (mjrft.field.mechanism states
-// the same rules in numba, tests/field_reference.py plainly in NumPy).
+// stick/slip step over the mechanism's generalized coordinates (tests/field_reference.py
+// states the same rules plainly in NumPy; docs/stability.md, "Mechanisms").
 //
 // Why: a body on joints feels, besides the medium, its actuators, its joints' coupling to the
 // rest of the mechanism and any constraint. MuJoCo computes actuator and constraint forces after

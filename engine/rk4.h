@@ -1,7 +1,7 @@
 // Copyright 2026 The mjrft authors. Licensed under the Apache License, Version 2.0.
 //
 // RK4's four forward passes per step: which stage a pass is, and what each body feels there
-// (mjrft.field.rk4 states the same rules; docs/stability.md, "RK4").
+// (tests/field_reference.py states the same rules plainly; docs/stability.md, "RK4").
 //
 // MuJoCo's RK4 (mj_RungeKutta) runs its stages at t0, t0 + h/2, t0 + h/2, t0 + h, the stage
 // times computed as t0 + c h; the same expressions here recognise them exactly. Stage 1 is

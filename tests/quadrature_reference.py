@@ -1,7 +1,7 @@
 """Slow, plainly written reference of the kernel's surface quadrature (mjrft.core.quadrature).
 
 One element at a time in Python: the same one-point rule and the same clipping of the
-submerged, leading part of a triangle as ``mjrft.core.kernel.body_wrench``, with the forces
+submerged, leading part of a triangle as the engine's kernel (engine/kernel.cc, BodyWrench), with the forces
 from the NumPy evaluation ``mjrft.core.rft.numpy_forces``. Any surface given as a depth function.
 """
 

@@ -31,7 +31,7 @@ GAINED = [
 ]
 # RK4 throws that gained 30-4000 x the tolerance in one step when the later stages applied the
 # pure model (or the frozen twist's) unguarded: an edge dipping in at the half step, a slow
-# spin turning between stages (mjrft.field.rk4.guard_stage).
+# spin turning between stages (engine/rk4.cc, GuardStage).
 GAINED_RK4 = [
     ("capsule", 5.0, 0.002, "RK4", 1),
     ("mesh", 0.05, 0.001, "RK4", 1),

@@ -1,4 +1,4 @@
-"""The low-speed treatment of bodies in mechanisms (mjrft.field.mechanism): a robot standing on
+"""The low-speed treatment of bodies in mechanisms (engine/mechanism.cc): a robot standing on
 sand stays put, moving rigs keep the pure model, a passive chain settles without gaining energy.
 
 Reduced sizes of benchmarks/standing.py (the full table: docs/stability.md, "Mechanisms"). The
@@ -149,19 +149,12 @@ def test_a_passive_chain_settles_and_gains_no_energy(integrator):
 
 
 def engine_tables(fld: GranularField):
-    """A ctypes ``Tables`` (engine/fields.h, through tests/engine_bridge.py) over the field's
-    engine tables (``fld._tables``, the arrays the model carries), for the engine's C entry
-    points of single stages."""
-    import engine_bridge as bridge
+    """A ctypes ``Tables`` (engine/tables.h, tests/engine_bridge.py) over the field's engine
+    tables (``fld._tables``, the arrays the model carries), for the engine's C entry points of
+    single stages."""
+    import engine_bridge
 
-    tables, t = fld._tables, bridge.Tables()
-    for name in bridge.table_sizes():
-        setattr(t, name, int(tables[name]))
-    for _, name in bridge.table_scalars():
-        setattr(t, name, tables[name])
-    for _, name in bridge.table_arrays():
-        setattr(t, name, tables[name].ctypes.data)
-    return t
+    return engine_bridge.tables_of(fld._tables)
 
 
 @pytest.mark.parametrize("name", ["hexapod_sand", "plate_rig", "ellipsoid_pitch"])

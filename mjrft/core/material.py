@@ -130,7 +130,7 @@ def combined_coefficients(fourier: FourierCoefficients) -> np.ndarray:
 
     alpha = K0 + K1 c2 + K2 s2 + K3 cg + K4 sg + K5 c2 cg + K6 s2 sg + K7 c2 sg + K8 s2 cg, with
     c2, s2 = cos, sin(2 beta) and cg, sg = cos, sin(gamma); from the 6 harmonics (m, n) of
-    HARMONICS by cos(2 m b + n g) and sin(2 m b + n g) expanded (``mjrft.core.kernel``).
+    HARMONICS by cos(2 m b + n g) and sin(2 m b + n g) expanded (engine/law.cc).
     """
 
     def comb(c, s):  # c, s: cosine and sine coefficients over HARMONICS

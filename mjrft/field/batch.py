@@ -26,7 +26,7 @@ at the start of each substep and held over it, ``xfrc_applied = user + wrench``)
 * a failing copy (a non-finite state, an intruder below the deforming ground) raises
   ``mujoco.batch.SimulationError`` (a RuntimeError) naming the copies and the engine's message
   (body and time); those copies keep the state they had before the call;
-* a medium given by Python callables is refused by ``mjrft.load_model`` already;
+* a medium given by Python callables runs as the engine's table of it (docs/materials.md);
 * ``user_xfrc`` is written into the copies' ``xfrc_applied`` at every ``step``, which the
   engine keeps as the user's part (its protocol for any MjData: ``GranularField.user_xfrc``).
 

@@ -135,7 +135,7 @@ BIAS_NONE, BIAS_AFFINE = int(mujoco.mjtBias.mjBIAS_NONE), int(mujoco.mjtBias.mjB
 
 
 def _affine_actuators(model: mujoco.MjModel) -> np.ndarray:
-    """(nu,) True for the actuators whose force mjrft.field.mechanism predicts at the current
+    """(nu,) True for the actuators whose force the mechanism treatment predicts at the current
     state: fixed or affine gain, no or affine bias, activation not used early."""
     return (
         np.isin(model.actuator_gaintype, (GAIN_FIXED, GAIN_AFFINE))

@@ -24,8 +24,7 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          optional box bounding the medium [m]
       <numeric name="mjrft:deform_cell" data="0.002"/>   the ground deforms and remembers, on a
                                                          grid of this cell [m] over the region
-                                                         (mjrft.core.soil; needs mjrft:region and
-                                                         <size nuserdata>, see load_model)
+                                                         (mjrft.core.soil; needs mjrft:region)
       <numeric name="mjrft:repose" data="30"/>           its angle of repose [deg] (default: the
                                                          material's, mjrft.core.soil.REPOSE_DEG)
       <numeric name="mjrft:deform_every" data="1"/>      steps between its updates (default 1;
