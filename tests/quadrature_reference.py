@@ -1,8 +1,9 @@
 """Slow, plainly written reference of the kernel's surface quadrature (mjrft.core.quadrature).
 
 One element at a time in Python: the same one-point rule and the same clipping of the
-submerged, leading part of a triangle as the engine's kernel (engine/kernel.cc, BodyWrench), with the forces
-from the NumPy evaluation ``mjrft.core.rft.numpy_forces``. Any surface given as a depth function.
+submerged, leading part of a triangle as the engine's kernel (engine/kernel.cc, BodyWrench),
+with the forces from the NumPy evaluation ``mjrft.core.rft.numpy_forces``. Any surface given as
+a depth function.
 """
 
 from __future__ import annotations
