@@ -374,9 +374,9 @@ class GranularField:
         # the area that gives that part's depth integral W at that point's depth.
         moved = (rows[:, 9] > 0.0) & np.any(rows[:, :3] != pos, axis=1)
         ground = self.scene.surface
-        for j in np.flatnonzero(moved):
-            x, y, z = rows[j, :3]
-            depth = surface.depth(ground.prm, ground.grid, soil, x, y, z)
+        j = np.flatnonzero(moved)
+        if j.size:  # one call of the engine for all of them
+            depth = surface.depth(ground.prm, ground.grid, soil, *rows[j, :3].T)
             pos[j], normal[j], area[j] = rows[j, :3], rows[j, 3:6], rows[j, 9] / depth
         vel = v_ref + np.cross(omega, pos - p_ref)
         return ElementState(b, idx, pos, normal, area, vel, elem_force[idx].copy())
