@@ -293,3 +293,18 @@ def test_a_pickled_data_gets_its_own_engine_instance():
     _steps(model, twin, 5)  # the original's instance is gone; the twin's is its own
     del twin
     gc.collect()
+
+
+def test_a_model_with_spring_and_damper_disabled_is_warned_of():
+    # mj_passive returns before the plugins when both flags are disabled: no RFT would act
+    from mjrft.field.scene import SceneWarning
+
+    xml = THROWN.format(integrator="Euler").replace(
+        '<flag contact="disable"/>', '<flag contact="disable" spring="disable" damper="disable"/>'
+    )
+    with pytest.warns(SceneWarning, match="feel no RFT"):
+        model = mjrft.load_model(xml)
+    data = mujoco.MjData(model)
+    data.qvel[:] = THROW
+    mujoco.mj_step(model, data)
+    assert np.all(data.xfrc_applied == 0.0)  # the warning's reason, checked

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+import warnings
 import weakref
 
 import mujoco
@@ -24,7 +25,7 @@ from mjrft.core.engine import EngineError, Layout, layout  # noqa: F401 (re-expo
 from mjrft.core.engine import library as _library
 from mjrft.field.model import FieldSetup, field_setup
 from mjrft.field.options import SceneOptions
-from mjrft.field.scene import ENGINE_PREFIX, SceneError, scene_from_model
+from mjrft.field.scene import ENGINE_PREFIX, SceneError, SceneWarning, scene_from_model
 
 PLUGIN = "mjrft.granular"
 PREFIX = ENGINE_PREFIX
@@ -100,6 +101,7 @@ def add_granular(
             spec.delete(numeric)
     if model is None:
         model = spec.compile()
+    _warn_if_passive_skipped(model)
     tables = setup(model, options).tables
     for name, data in numerics(tables).items():
         spec.add_numeric(name=PREFIX + name, data=data.tolist(), size=max(1, len(data)))
@@ -111,6 +113,21 @@ def add_granular(
         spec.activate_plugin(PLUGIN)
         plugins = [spec.add_plugin(name="mjrft", plugin_name=PLUGIN, active=True)]
     plugins[0].config = config
+
+
+def _warn_if_passive_skipped(model: mujoco.MjModel) -> None:
+    """MuJoCo's passive stage returns before its plugins when both the spring and the damper
+    flags are disabled: the engine would never run, and nothing else would say so."""
+    flags = int(model.opt.disableflags)
+    both = int(mujoco.mjtDisableBit.mjDSBL_SPRING) | int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+    if flags & both == both:
+        warnings.warn(
+            "<flag spring='disable' damper='disable'/>: MuJoCo skips its passive stage, and "
+            "with it the granular engine, when both are disabled; the model will feel no RFT "
+            "(enable either flag)",
+            SceneWarning,
+            stacklevel=3,
+        )
 
 
 def load_model(
