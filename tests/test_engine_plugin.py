@@ -308,3 +308,12 @@ def test_a_model_with_spring_and_damper_disabled_is_warned_of():
     data.qvel[:] = THROW
     mujoco.mj_step(model, data)
     assert np.all(data.xfrc_applied == 0.0)  # the warning's reason, checked
+
+
+def test_a_spec_given_the_engine_twice_keeps_one_instance_and_fresh_tables():
+    spec = mujoco.MjSpec.from_string(THROWN.format(integrator="Euler"))
+    mjrft.add_granular(spec)
+    mjrft.add_granular(spec, n_triangles=80)  # the second tables replace the first
+    model = spec.compile()
+    assert model.nplugin == 1
+    assert mjrft.GranularField(model, n_triangles=80).n_elements < 200

@@ -96,9 +96,11 @@ def add_granular(
     """
     library()
     options = SceneOptions.of(options, **overrides)
-    for numeric in list(spec.numerics):
-        if numeric.name.startswith(PREFIX):
-            spec.delete(numeric)
+    # An instance or tables already in spec (a spec loaded twice, MJCF saved with them) go: a
+    # model compiled with an instance but without its tables would be refused by the engine.
+    for element in [*spec.numerics, *spec.plugins]:
+        if element.name.startswith(PREFIX) or getattr(element, "plugin_name", "") == PLUGIN:
+            spec.delete(element)
     if model is None:
         model = spec.compile()
     _warn_if_passive_skipped(model)
@@ -108,11 +110,8 @@ def add_granular(
     # MuJoCo sizes a plugin's state before the model's numeric fields hold data: the sizes that
     # fix it travel in the instance's config too (the engine checks them against the tables).
     config = {k: str(int(tables[k])) for k in ("ntbody", "ntgeom", "nsoil")}
-    plugins = [p for p in spec.plugins if p.plugin_name == PLUGIN]
-    if not plugins:
-        spec.activate_plugin(PLUGIN)
-        plugins = [spec.add_plugin(name="mjrft", plugin_name=PLUGIN, active=True)]
-    plugins[0].config = config
+    spec.activate_plugin(PLUGIN)
+    spec.add_plugin(name="mjrft", plugin_name=PLUGIN, active=True).config = config
 
 
 def _warn_if_passive_skipped(model: mujoco.MjModel) -> None:
