@@ -20,6 +20,7 @@ and ``mjrft.core.body`` check theirs. World frame, SI units, rotations body -> w
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 import threading
 from dataclasses import dataclass
@@ -120,6 +121,7 @@ class Layout:
     state: tuple[tuple[str, str], ...]
 
 
+@functools.cache
 def layout() -> Layout:
     """The layout the loaded engine reads."""
     text = library().mjrft_layout().decode()
