@@ -169,6 +169,7 @@ def _recorder(args: argparse.Namespace, model, fld):
 RUN_CSV = "timeseries.csv"
 RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
+RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
 
@@ -189,9 +190,15 @@ def _check_outputs(args: argparse.Namespace) -> Path:
         raise ValueError(f"cannot create --out folder {str(out)!r}: {exc.strerror}") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise ValueError(f"--out folder {str(out)!r} is not writable")
+    previous = [name for name in RUN_FILES if (out / name).exists()]
+    if previous and not args.overwrite:
+        raise ValueError(
+            f"--out folder {str(out)!r} already holds a run ({', '.join(previous)}); pass "
+            "--overwrite to replace it, or choose another folder"
+        )
     if args.rrd:
         rrd = Path(args.rrd)
-        ours = {(out / name).resolve() for name in (RUN_CSV, RUN_JSON, *RUN_PLOTS)}
+        ours = {(out / name).resolve() for name in RUN_FILES}
         if rrd.resolve() in ours:
             raise ValueError(f"--rrd {str(rrd)!r} would overwrite the run's own {rrd.name}")
         if rrd.exists() and not args.overwrite:
@@ -217,6 +224,9 @@ def _run(args: argparse.Namespace) -> int:
     model, keyframe, fld = _scene(args, xml)
     columns = simulate.new_recording(model, fld).columns
     run = _RunInfo(xml, model, fld, keyframe)
+    # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
+    for name in RUN_FILES:
+        (out / name).unlink(missing_ok=True)
     metadata.write(out / RUN_JSON, run.record(args, "running"))
     # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
     # crash or SIGKILL loses at most the last second.
@@ -506,7 +516,12 @@ def _add_run(sub) -> None:
     r.add_argument(
         "--duration", type=_positive_float, required=True, help="simulated time in seconds"
     )
-    r.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    r.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="output directory (created; one that holds a run needs --overwrite)",
+    )
     _add_scene_options(r)
     r.add_argument(
         "--no-plots",
@@ -523,7 +538,8 @@ def _add_run(sub) -> None:
     r.add_argument(
         "--overwrite",
         action="store_true",
-        help="let --rrd replace an existing file (refused otherwise)",
+        help="replace the run already in DIR (its CSV, run.json and plots) and an existing "
+        "--rrd file (both refused otherwise)",
     )
     _add_recording_options(r)
     r.set_defaults(func=_run)
