@@ -172,6 +172,8 @@ RUN_JSON = "run.json"
 RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
+#: Exit code of `mjrft sweep` when runs failed (their rows say why).
+EXIT_RUNS_FAILED = 3
 
 
 class Terminated(KeyboardInterrupt):
@@ -560,11 +562,14 @@ def _add_sweep(sub) -> None:
             "a worker built from scratch, and append one row per finished run to "
             "DIR/results.csv (run id, parameters, metrics, status, error, wall time, seed, "
             "versions), flushed as runs finish; then write a PNG per metric into DIR (a line "
-            "over one varied parameter, a heat map over two). A run that fails (its values do "
-            "not compile, it diverges, user code raises) is recorded with its error and the "
-            "others go on. On Ctrl-C or SIGTERM no new run starts, the runs in flight are "
-            "stopped, the finished rows are kept and the command says how to resume. Exit "
-            "codes: 0 done (failed runs included), 2 bad input, 130 interrupted, 143 terminated."
+            "over one varied parameter, a heat map over two). The first run is loaded before "
+            "any starts: if it and the run most unlike it fail to load with the same error, the "
+            "sweep stops with that error. A run that fails (its values do not compile, it "
+            "diverges, user code raises) is recorded with its error and the others go on. On "
+            "Ctrl-C or SIGTERM no new run starts, the runs in flight are stopped, the finished "
+            "rows are kept and the command says how to resume. Exit codes: 0 done, every run "
+            "ok, 2 bad input, 3 done with failed runs (the command says how many), 130 "
+            "interrupted, 143 terminated."
         ),
     )
     s.add_argument("study", metavar="STUDY", help="the study description (TOML)")
@@ -652,11 +657,21 @@ def _sweep(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGTERM, previous)
     elapsed = time.perf_counter() - args.started[0]
+    before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
     print(
         f"mjrft sweep {study.name}: {summary.computed} runs computed ({summary.failed} failed, "
-        f"see the error column), {summary.skipped} already in the table, {summary.total} in "
-        f"all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote {summary.table}"
+        f"see the error column), {summary.skipped} already in the table{before}, "
+        f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
+        f"{summary.table}"
     )
+    failed = summary.failed + summary.failed_before
+    if failed:
+        print(
+            f"mjrft sweep: {failed} of {summary.total} runs failed; their errors are in the "
+            f"error column of {summary.table}",
+            file=sys.stderr,
+        )
+        return EXIT_RUNS_FAILED
     return 0
 
 
