@@ -33,13 +33,17 @@ class GymnasiumEnv(gymnasium.Env):
       **kwargs: passed to ``envs.load`` when ``env`` is a name.
     """
 
-    metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 - gymnasium's convention
+    #: A class attribute, gymnasium's convention. render_fps: one frame per control step, here
+    #: the default 0.02 s step's rate; each instance's metadata has its environment's.
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50.0}  # noqa: RUF012
 
     def __init__(self, env: Any, render_mode: str | None = None, **kwargs: Any) -> None:
         self._env = load(env, **kwargs) if isinstance(env, str) else env
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
+        fps = round(1.0 / self._env.control_timestep(), 9)
+        self.metadata = {**type(self).metadata, "render_fps": fps}
         aspec = self._env.action_spec()
         self.action_space = spaces.Box(
             low=np.broadcast_to(aspec.minimum, aspec.shape).astype(np.float64),

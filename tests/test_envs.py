@@ -110,6 +110,31 @@ def test_environments_are_registered_with_gymnasium():
     env.close()
 
 
+@pytest.mark.skipif(gymnasium is None, reason="gymnasium not installed")
+def test_gymnasium_makes_them_by_module_and_id_in_a_fresh_interpreter_without_warnings():
+    """gymnasium >= 1.0 loads no plugins: "module:id" is its way to make an environment of a
+    package not yet imported. Warnings are errors: render_fps is declared (one frame per control
+    step), so gymnasium's environment checker has nothing to say when it renders."""
+    probe = (
+        "import sys, numpy as np, gymnasium\n"
+        "assert 'mjrft.envs' not in sys.modules\n"
+        "env = gymnasium.make('mjrft.envs:mjrft/hexapod_sand-v0', render_mode='rgb_array',\n"
+        "                     time_limit=0.1, control_timestep=0.04)\n"
+        "env.reset(seed=0)\n"
+        "env.step(env.action_space.sample())\n"
+        "frame = np.zeros((240, 320, 3), np.uint8)\n"
+        "env.unwrapped.render = lambda: frame  # what is checked is the metadata, not OpenGL\n"
+        "assert env.render() is frame\n"
+        "print(env.metadata['render_fps'], type(env.unwrapped).metadata['render_fps'])\n"
+        "env.close()\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-W", "error", "-c", probe], capture_output=True, text=True, timeout=300
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["25.0", "50.0"]
+
+
 # --- the contract, for every environment --------------------------------------------------------
 
 

@@ -1,5 +1,6 @@
 """Runs never record garbage silently and never lose what they computed."""
 
+import json
 import signal
 import subprocess
 import sys
@@ -93,6 +94,33 @@ def test_outputs_are_checked_before_the_first_step(tmp_path, capsys, case):
     assert not (out / "timeseries.csv").exists() or case == "out is a file"
     if case == "rrd exists":
         assert (tmp_path / "old.rrd").read_text() == "precious"
+
+
+def test_a_run_in_a_folder_that_holds_one_needs_overwrite(tmp_path, capsys):
+    """Another run's results are refused before the first step, not replaced; --overwrite
+    replaces all of them (no stale plots beside a --no-plots run)."""
+    model = str(MODELS / "sphere_drop.xml")
+    args = ["run", model, "--duration", "0.02", "--out", str(tmp_path), "--triangles", "200"]
+    assert cli.main(args) == 0
+    plots = {p.name for p in tmp_path.glob("*.png")}
+    assert plots == set(cli.RUN_PLOTS)
+    files = (cli.RUN_CSV, cli.RUN_JSON, *cli.RUN_PLOTS)
+    before = {name: (tmp_path / name).read_bytes() for name in files}
+    capsys.readouterr()
+    for kept in (cli.RUN_JSON, cli.RUN_PLOTS[0]):  # any one of its files marks a run
+        for name in files:
+            if name != kept:
+                (tmp_path / name).unlink(missing_ok=True)
+        assert cli.main([*args, "--no-plots"]) == 2
+        err = capsys.readouterr().err
+        assert f"--out folder {str(tmp_path)!r} already holds a run ({kept})" in err
+        assert "pass --overwrite" in err
+        assert (tmp_path / kept).read_bytes() == before[kept]
+        for name, data in before.items():
+            (tmp_path / name).write_bytes(data)
+    assert cli.main([*args, "--no-plots", "--overwrite"]) == 0
+    assert not list(tmp_path.glob("*.png"))
+    assert json.loads((tmp_path / cli.RUN_JSON).read_text())["options"]["no_plots"] is True
 
 
 def _start_run(tmp_path: Path, duration: float) -> subprocess.Popen:
@@ -206,9 +234,9 @@ def test_cli_options_reach_the_run_and_run_json(tmp_path, capsys):
                      "--no-plots"]) == 0  # fmt: skip
     capsys.readouterr()
     assert json.loads((default / "run.json").read_text())["field"]["triangles"] != 0
-    assert cli.main([*args[:6], "--ctrl", "os:no_such"]) == 2
+    assert cli.main([*args[:6], "--overwrite", "--ctrl", "os:no_such"]) == 2
     assert "has no callable 'no_such'" in capsys.readouterr().err
-    assert cli.main([*args[:6], "--keyframe", "walk"]) == 2
+    assert cli.main([*args[:6], "--overwrite", "--keyframe", "walk"]) == 2
     assert "no keyframe of that name" in capsys.readouterr().err
 
 
@@ -222,7 +250,7 @@ def test_cli_deform_options_turn_on_the_ground_that_remembers(tmp_path, capsys):
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "completed" and meta["field"]["deforms"] is True
     assert meta["options"]["deform_cell"] == 0.01 and meta["options"]["repose"] == 25.0
-    assert cli.main([*args[:7], "--deform-cell", "0"]) == 0
+    assert cli.main([*args[:7], "--overwrite", "--deform-cell", "0"]) == 0
     assert json.loads((out / "run.json").read_text())["field"]["deforms"] is False
     capsys.readouterr()
     with pytest.raises(SystemExit):

@@ -224,6 +224,51 @@ twice_m = {{ kind = "custom", function = "my_metrics.py:twice_the_depth" }}
     assert len(summary.plots) == 2 and all(p.stat().st_size > 1000 for p in summary.plots)
 
 
+@pytest.mark.parametrize("backend", ["serial", "local"])
+def test_an_error_every_run_shares_stops_the_sweep_before_any_run(tmp_path, capsys, backend):
+    """A blanked preset passes Study.load (its own check compiles the model as it is) but no run
+    compiles: the sweep stops with MuJoCo's error before writing anything."""
+    path = plate_study(tmp_path)
+    path.write_text(path.read_text().replace("[set]\n", '[set]\n"mjrft:material" = ""\n'))
+    study = Study.load(path)
+    shared = r"fail to load with the same error.*no run was started: ValueError: .*mjrft:material"
+    with pytest.raises(StudyError, match=shared):
+        run_study(study, tmp_path / "out", backend=backend, workers=2)
+    assert not (tmp_path / "out").exists()
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "2"]) == 2
+    assert "size cannot be zero" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_sweep_with_failed_runs_exits_3_saying_how_many(tmp_path, capsys):
+    """The first run fails to load on its own value, the others do not: the sweep goes on, and
+    its exit code and a line on stderr say how many failed, counting those a resume finds."""
+    path = tmp_path / "widths.toml"
+    path.write_text(f"""
+[study]
+model = "{Path(cli.__file__).parents[2] / "models" / "ellipsoid_pitch.xml"}"
+duration = 0.02
+[parameters.width_m]
+path = "geom.ellipsoid.size[0]"
+values = [-0.01, 0.0096, 0.009]
+[set]
+triangles = 200
+[metrics]
+depth_m = {{ kind = "final_depth", body = "ellipsoid" }}
+""")
+    out = tmp_path / "out"
+    assert cli.main(["sweep", str(path), "--out", str(out), "--workers", "2"]) == 3
+    printed = capsys.readouterr()
+    assert "3 runs computed (1 failed" in printed.out
+    assert f"1 of 3 runs failed; their errors are in the error column of {out}" in printed.err
+    rows = load_results(out)
+    assert sorted(r["status"] for r in rows) == ["failed", "ok", "ok"]
+    assert cli.main(["sweep", str(path), "--out", str(out), "--resume"]) == 3
+    printed = capsys.readouterr()
+    assert "3 already in the table (1 failed)" in printed.out
+    assert "1 of 3 runs failed" in printed.err
+
+
 # (the change to the first parameter, pieces of the message in order)
 BAD = [
     ('path = "bdy.plate.pos"', ["unknown path 'bdy.plate.pos'; valid forms: <kind>.<name>"]),

@@ -169,8 +169,11 @@ def _recorder(args: argparse.Namespace, model, fld):
 RUN_CSV = "timeseries.csv"
 RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
+RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
+#: Exit code of `mjrft sweep` when runs failed (their rows say why).
+EXIT_RUNS_FAILED = 3
 
 
 class Terminated(KeyboardInterrupt):
@@ -189,9 +192,15 @@ def _check_outputs(args: argparse.Namespace) -> Path:
         raise ValueError(f"cannot create --out folder {str(out)!r}: {exc.strerror}") from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise ValueError(f"--out folder {str(out)!r} is not writable")
+    previous = [name for name in RUN_FILES if (out / name).exists()]
+    if previous and not args.overwrite:
+        raise ValueError(
+            f"--out folder {str(out)!r} already holds a run ({', '.join(previous)}); pass "
+            "--overwrite to replace it, or choose another folder"
+        )
     if args.rrd:
         rrd = Path(args.rrd)
-        ours = {(out / name).resolve() for name in (RUN_CSV, RUN_JSON, *RUN_PLOTS)}
+        ours = {(out / name).resolve() for name in RUN_FILES}
         if rrd.resolve() in ours:
             raise ValueError(f"--rrd {str(rrd)!r} would overwrite the run's own {rrd.name}")
         if rrd.exists() and not args.overwrite:
@@ -217,6 +226,9 @@ def _run(args: argparse.Namespace) -> int:
     model, keyframe, fld = _scene(args, xml)
     columns = simulate.new_recording(model, fld).columns
     run = _RunInfo(xml, model, fld, keyframe)
+    # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
+    for name in RUN_FILES:
+        (out / name).unlink(missing_ok=True)
     metadata.write(out / RUN_JSON, run.record(args, "running"))
     # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
     # crash or SIGKILL loses at most the last second.
@@ -506,7 +518,12 @@ def _add_run(sub) -> None:
     r.add_argument(
         "--duration", type=_positive_float, required=True, help="simulated time in seconds"
     )
-    r.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    r.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="output directory (created; one that holds a run needs --overwrite)",
+    )
     _add_scene_options(r)
     r.add_argument(
         "--no-plots",
@@ -523,7 +540,8 @@ def _add_run(sub) -> None:
     r.add_argument(
         "--overwrite",
         action="store_true",
-        help="let --rrd replace an existing file (refused otherwise)",
+        help="replace the run already in DIR (its CSV, run.json and plots) and an existing "
+        "--rrd file (both refused otherwise)",
     )
     _add_recording_options(r)
     r.set_defaults(func=_run)
@@ -544,11 +562,14 @@ def _add_sweep(sub) -> None:
             "a worker built from scratch, and append one row per finished run to "
             "DIR/results.csv (run id, parameters, metrics, status, error, wall time, seed, "
             "versions), flushed as runs finish; then write a PNG per metric into DIR (a line "
-            "over one varied parameter, a heat map over two). A run that fails (its values do "
-            "not compile, it diverges, user code raises) is recorded with its error and the "
-            "others go on. On Ctrl-C or SIGTERM no new run starts, the runs in flight are "
-            "stopped, the finished rows are kept and the command says how to resume. Exit "
-            "codes: 0 done (failed runs included), 2 bad input, 130 interrupted, 143 terminated."
+            "over one varied parameter, a heat map over two). The first run is loaded before "
+            "any starts: if it and the run most unlike it fail to load with the same error, the "
+            "sweep stops with that error. A run that fails (its values do not compile, it "
+            "diverges, user code raises) is recorded with its error and the others go on. On "
+            "Ctrl-C or SIGTERM no new run starts, the runs in flight are stopped, the finished "
+            "rows are kept and the command says how to resume. Exit codes: 0 done, every run "
+            "ok, 2 bad input, 3 done with failed runs (the command says how many), 130 "
+            "interrupted, 143 terminated."
         ),
     )
     s.add_argument("study", metavar="STUDY", help="the study description (TOML)")
@@ -636,11 +657,21 @@ def _sweep(args: argparse.Namespace) -> int:
     finally:
         signal.signal(signal.SIGTERM, previous)
     elapsed = time.perf_counter() - args.started[0]
+    before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
     print(
         f"mjrft sweep {study.name}: {summary.computed} runs computed ({summary.failed} failed, "
-        f"see the error column), {summary.skipped} already in the table, {summary.total} in "
-        f"all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote {summary.table}"
+        f"see the error column), {summary.skipped} already in the table{before}, "
+        f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
+        f"{summary.table}"
     )
+    failed = summary.failed + summary.failed_before
+    if failed:
+        print(
+            f"mjrft sweep: {failed} of {summary.total} runs failed; their errors are in the "
+            f"error column of {summary.table}",
+            file=sys.stderr,
+        )
+        return EXIT_RUNS_FAILED
     return 0
 
 

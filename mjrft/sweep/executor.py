@@ -79,6 +79,13 @@ def build(study: Study, run: RunSpec) -> tuple[mujoco.MjModel, Any, Any]:
     return model, fld, ctrl
 
 
+def load(study: Study, run: RunSpec) -> tuple[mujoco.MjModel, Any, Any, Probe]:
+    """Everything `run` builds before its first step: ``build``'s model, field and controller,
+    and the probe of its metrics. Raises what the run would fail with before simulating."""
+    model, fld, ctrl = build(study, run)
+    return model, fld, ctrl, Probe(list(study.metrics), model, fld)
+
+
 def _keyframe(study: Study, model: mujoco.MjModel) -> int | None:
     if isinstance(study.keyframe, str):
         return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, study.keyframe)
@@ -88,8 +95,7 @@ def _keyframe(study: Study, model: mujoco.MjModel) -> int | None:
 def _simulate(study: Study, run: RunSpec, out: Path | None) -> dict[str, float]:
     from mjrft.app import simulate
 
-    model, fld, ctrl = build(study, run)
-    probe = Probe(list(study.metrics), model, fld)
+    model, fld, ctrl, probe = load(study, run)
     custom = [m for m in study.metrics if m.kind == "custom"]
     rec, tmp, final = None, None, None
     if study.timeseries and out is not None:

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from mjrft.field.signals import HeldSignals
 from mjrft.sweep import backends
-from mjrft.sweep.errors import StudyError
+from mjrft.sweep.errors import StudyError, one_line
 from mjrft.sweep.executor import STATUS_OK
-from mjrft.sweep.results import RESULTS_CSV, ResultsTable
-from mjrft.sweep.study import Study
+from mjrft.sweep.results import RESULTS_CSV, ResultsTable, load_results
+from mjrft.sweep.study import RunSpec, Study
 
 #: progress(done, total, row): after each finished run (row None at the start); counts are of
 #: the runs this call computes.
@@ -22,12 +22,13 @@ Progress = Callable[[int, int, "dict | None"], None]
 @dataclass
 class SweepSummary:
     """What ``run_study`` did: runs in the study, already in the folder (skipped), computed now,
-    failed among those; the results table and plots written."""
+    failed among those, failed among the skipped ones; the results table and plots written."""
 
     total: int
     skipped: int
     computed: int = 0
     failed: int = 0
+    failed_before: int = 0
     table: Path = Path()
     plots: list[Path] = field(default_factory=list)
 
@@ -53,18 +54,22 @@ def run_study(
       resume: continue the sweep `out` holds (refused if its study differs, naming what);
         without it a folder that holds a sweep is refused.
     Raises:
-      StudyError for bad input; KeyboardInterrupt (Ctrl-C) after ending the runs in flight,
-      with every finished row on disk (resume with ``resume=True``).
+      StudyError for bad input, and before any run starts and anything is written when every
+      run would fail to load alike (``check_loads``); KeyboardInterrupt (Ctrl-C) after ending
+      the runs in flight, with every finished row on disk (resume with ``resume=True``).
     """
     if backend not in backends.BACKENDS:
         raise StudyError(f"backend {backend!r}; valid: {', '.join(backends.BACKENDS)}")
     if workers is not None and workers < 1:
         raise StudyError(f"workers = {workers}: need at least 1")
     out = Path(out)
+    check_loads(study)
     table = ResultsTable.open(out, study, resume)
     runs = study.runs()
     pending = [r for r in runs if r.run_id not in table.done]
     summary = SweepSummary(len(runs), len(runs) - len(pending), table=out / RESULTS_CSV)
+    if summary.skipped:
+        summary.failed_before = sum(r["status"] != STATUS_OK for r in load_results(out))
 
     def on_row(row: dict) -> None:
         with HeldSignals((signal.SIGINT, signal.SIGTERM)):  # a row is written whole or not
@@ -90,3 +95,41 @@ def run_study(
 
         summary.plots = plot_study(study, out)
     return summary
+
+
+def check_loads(study: Study) -> None:
+    """Stop a study whose every run would fail before its first step, with that error, instead
+    of failing each run: the first run is loaded here as its worker loads it (``executor.load``:
+    the model compiled with the engine, its field, controller and metrics), without simulating.
+    If it fails, so is the run most unlike it (for a grid the last, which differs in every
+    parameter that varies); the same error from both is the study's own (its model, a ``[set]``
+    value), not a parameter value's, and raises a StudyError. An error that a value causes is
+    left to the sweep: those runs are failed rows and the others go on."""
+    runs = study.runs()
+    first = runs[0]
+    error = _load_error(study, first)
+    if error is None:
+        return
+    if len(runs) > 1:
+        names = [p.name for p in study.parameters]
+        other = max(runs[1:], key=lambda r: sum(r.values[k] != first.values[k] for k in names))
+        if _load_error(study, other) != error:
+            return
+        what = (
+            f"its first run ({first.run_id}) and the one most unlike it ({other.run_id}) fail "
+            "to load with the same error, which no parameter value causes"
+        )
+    else:
+        what = f"its only run ({first.run_id}) fails to load"
+    raise StudyError(f"study {study.name!r}: {what}; no run was started: {error}")
+
+
+def _load_error(study: Study, run: RunSpec) -> str | None:
+    """The error `run` fails with before its first step, as its results row would give it."""
+    from mjrft.sweep.executor import load
+
+    try:
+        load(study, run)
+    except Exception as exc:  # what executor.execute records as the run's error
+        return one_line(f"{type(exc).__name__}: {exc}")
+    return None
