@@ -224,6 +224,27 @@ twice_m = {{ kind = "custom", function = "my_metrics.py:twice_the_depth" }}
     assert len(summary.plots) == 2 and all(p.stat().st_size > 1000 for p in summary.plots)
 
 
+def test_a_run_shorter_than_its_timestep_is_a_failed_row_naming_both(tmp_path):
+    path = tmp_path / "short.toml"
+    path.write_text("""
+[study]
+model = "sphere_drop"
+duration = 0.05
+[parameters.timestep]
+path = "timestep"
+values = [0.001, 0.5]
+[set]
+triangles = 60
+[metrics]
+depth_m = { kind = "final_depth", body = "sphere" }
+""")
+    summary = run_study(Study.load(path), tmp_path / "out", backend="serial")
+    rows = {r["timestep"]: r for r in load_results(tmp_path / "out")}
+    assert summary.computed == 2 and summary.failed == 1 and rows[0.001]["status"] == "ok"
+    assert rows[0.5]["status"] == "failed" and math.isnan(rows[0.5]["depth_m"])
+    assert "duration 0.05 s is shorter than the timestep 0.5 s" in rows[0.5]["error"]
+
+
 # (the change to the first parameter, pieces of the message in order)
 BAD = [
     ('path = "bdy.plate.pos"', ["unknown path 'bdy.plate.pos'; valid forms: <kind>.<name>"]),
