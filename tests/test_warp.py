@@ -246,6 +246,25 @@ def test_the_users_part_of_xfrc_applied_survives():
     np.testing.assert_array_equal(d.xfrc_applied.numpy(), want)  # the user's values, restored
 
 
+def test_a_field_refuses_another_models_model_and_data_naming_both():
+    mjm, mjd = load("sphere_drop")
+    field = mw.WarpField(mjm, device=DEVICE)
+    spec = spec_of("sphere_drop")  # the same sizes, a 4 cm box where the 1 cm sphere was
+    spec.geom("sphere").type = mujoco.mjtGeom.mjGEOM_BOX
+    spec.geom("sphere").size = [0.02, 0.02, 0.02]
+    with pytest.raises(ValueError, match=r"not made from the WarpField's model 'sphere_drop' "
+                       r"\(geom_type; the intruding geoms' geom_size differ\)"):  # fmt: skip
+        field.install(mjw.put_model(spec.compile()))
+    dune, dune_d = load("dune_drop")
+    with pytest.raises(ValueError, match=r"sizes nq=21, nv=18, nbody=4.*not nq=7, nv=6, nbody=2"):
+        field.install(mjw.put_model(dune))
+    with pytest.raises(ValueError, match=r"another model \(nq=21.*'sphere_drop' \(nq=7, nv=6"):
+        field.prepare(mjw.put_data(dune, dune_d, nworld=1))
+    m = mjw.put_model(mjm)
+    with field.installed(m):  # its own model and data are served
+        field.prepare(mjw.put_data(mjm, mjd, nworld=1))
+
+
 def mechanical_energy(mjm, qpos, qvel):
     """Potential + kinetic energy [J] of the free sphere (world frame, z up)."""
     mass = mjm.body_mass[1]
