@@ -24,7 +24,7 @@ import numpy as np
 import warp as wp
 
 from mjrft.core import surface as core_surface
-from mjrft.core.material import Material
+from mjrft.core.material import Material, as_material
 from mjrft.field import plugin
 from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
@@ -506,16 +506,18 @@ def element_forces(
     normal: np.ndarray,
     area: np.ndarray,
     vel: np.ndarray,
-    material: Material,
+    material: Material | str,
     surface_z: float = 0.0,
     device: str | None = None,
 ) -> np.ndarray:
     """``mjrft.element_forces`` evaluated by the Warp law (float64) on a Warp device.
 
     Args: (n, 3) centroids [m], (n, 3) unit normals, (n,) areas [m^2], (n, 3) velocities
-    [m/s], all world frame; material (Fourier form, treers2021); surface_z [m].
+    [m/s], all world frame; material (Fourier form, treers2021), or a preset's name;
+    surface_z [m].
     Returns: (n, 3) forces [N], world frame.
     """
+    material = as_material(material)
     if not material.compiled or material.fourier is None:
         raise UnsupportedScene(
             f"mjrft.warp.element_forces: material {material.name!r} is not a Fourier-form "
