@@ -270,6 +270,24 @@ def test_a_bad_parameter_is_refused_naming_its_path_and_what_is_valid(tmp_path, 
         Study.from_toml(text)
 
 
+def test_a_study_of_too_many_runs_is_refused_naming_the_count_before_they_exist(tmp_path):
+    text = plate_study(tmp_path).read_text()
+    t0 = time.perf_counter()
+    for rng, count in (("num = 1_000_000_000", "1,000,000,000"), ("step = 1e-9", "1,000,000,001")):
+        huge = text.replace("values = [0, 20]", f"range = {{ start = 0, stop = 1, {rng} }}", 1)
+        with pytest.raises(StudyError, match=rf"parameters\.pitch_deg\]: the range has {count} "
+                           r"values, more than the 1,000,000 runs a study may have"):  # fmt: skip
+            Study.from_toml(huge)
+    grid = text.replace("values = [0, 20]", "range = { start = 0, stop = 1, num = 250_001 }", 1)
+    with pytest.raises(StudyError, match=r"the study has 1,000,004 runs \(the grid of pitch_deg "
+                       r"250,001 x speed 2 x triangles 2\), more than the 1,000,000"):  # fmt: skip
+        Study.from_toml(grid)
+    drawn = text.replace("[study]", '[study]\nsampling = "random"\nsamples = 1_000_001', 1)
+    with pytest.raises(StudyError, match=r"1,000,001 runs \(samples = 1,000,001\), more than"):
+        Study.from_toml(drawn)
+    assert time.perf_counter() - t0 < 10.0  # refused before listing or checking any run
+
+
 def test_an_unknown_metric_or_name_is_refused_listing_the_valid_ones(tmp_path):
     text = plate_study(tmp_path).read_text()
     listed = (
