@@ -122,3 +122,27 @@ def test_body_wrench_bad_input(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         body_wrench(**args)
+
+
+def test_a_material_may_be_a_preset_name_and_anything_else_is_named():
+    """``material="glass_beads"`` is the preset, in element_forces, body_wrench and
+    trajectory_wrenches alike; an unknown name or another type names the argument and the
+    presets."""
+    el = octahedron()
+    pose = dict(position=[0.0, 0.0, -0.01], rotation=np.eye(3), lin_vel=[0.01, 0.0, -0.02],
+                ang_vel=[0.0, 0.5, 0.0])  # fmt: skip
+    want = body_wrench(el, material=GLASS, **pose)
+    got = body_wrench(el, material="glass_beads", **pose)
+    np.testing.assert_array_equal(got.force, want.force)
+    t = trajectory_wrenches(el, [pose["position"]], [np.eye(3)], [pose["lin_vel"]],
+                            [pose["ang_vel"]], "glass_beads")  # fmt: skip
+    np.testing.assert_array_equal(t.force[0], want.force)
+    args = (el.centroids - [0, 0, 0.01], el.normals, el.areas, np.tile([0.0, 0.0, -0.1], (8, 1)))
+    np.testing.assert_array_equal(
+        mjrft.element_forces(*args, "glass_beads"), mjrft.element_forces(*args, GLASS)
+    )
+    with pytest.raises(ValueError, match=r"material='sand': unknown material preset.*glass_beads"):
+        mjrft.element_forces(*args, "sand")
+    with pytest.raises(TypeError, match=r"material must be a mjrft.Material or a preset name "
+                       r"\(generic_1ncm3, glass_beads, .*\), got dict"):  # fmt: skip
+        body_wrench(el, material={"zeta": 1.0}, **pose)

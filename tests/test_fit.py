@@ -151,6 +151,29 @@ def test_cli_fit_names_a_bad_csv(tmp_path, capsys):
     assert "row 2, column depth_m: 'deep'" in capsys.readouterr().err
 
 
+def test_repeated_rows_are_refused_naming_them_and_replicates_are_fitted(tmp_path, capsys):
+    """A file given twice would narrow every interval by 1/sqrt(2) with no new information."""
+    material = mjrft.Material.preset("glass_beads")
+    rng = np.random.default_rng(4)
+    data = plates(material, *grid(), rng, noise=0.01)
+    twice = PlateData(*(np.concatenate([a, a]) for a in vars(data).values()))
+    n = len(data.beta)
+    with pytest.raises(FitError, match=rf"plate data: {n} row\(s\) repeat .*\(row {n} = row 0, "):
+        fit(twice, "first")
+    path = tmp_path / "plates.csv"
+    lines = ["beta_deg,gamma_deg,depth_m,area_m2,fx_N,fz_N"]
+    lines += [",".join(f"{x:.17g}" for x in row) for row in zip(*vars(data).values(), strict=True)]
+    path.write_text("\n".join(lines + lines[1:3]) + "\n")  # the first two plates pasted again
+    assert cli.main(["fit", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: 2 row(s) repeat an earlier row in every column (row {n + 2} = row 2, " in err
+    # Replicates (the same plates measured again: their own forces) are data.
+    fx, fz = (np.concatenate([f, f + rng.normal(0.0, 0.01, n)]) for f in (data.fx, data.fz))
+    same = (np.concatenate([a, a]) for a in (data.beta, data.gamma, data.depth, data.area))
+    replicate = PlateData(*same, fx, fz)
+    assert fit(replicate, "first").n == 2 * n
+
+
 # ---- yawed plates: alpha_y(beta), f1, f23 (mjrft.core.fit.fit_yawed) -------------------------
 
 

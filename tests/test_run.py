@@ -163,6 +163,22 @@ def test_a_stopped_run_keeps_what_it_computed(tmp_path, how):
     assert csv.read_text().endswith("\n")  # the last row is whole
 
 
+def test_a_duration_shorter_than_one_timestep_is_refused_naming_both(tmp_path, capsys):
+    """One step would end the run a whole timestep past its duration."""
+    model = simulate.load_model("sphere_drop")
+    simulate.configure(model, 0.5, None)
+    with pytest.raises(ValueError, match=r"duration 0\.05 s is shorter than the timestep 0\.5 s"):
+        simulate.run(model, 0.05)
+    data, _ = simulate.run(model, 0.5)  # exactly one timestep is one step
+    assert data.time == 0.5
+    out = tmp_path / "o"
+    args = ["run", "sphere_drop", "--duration", "0.05", "--timestep", "0.5", "--out", str(out)]
+    assert cli.main(args) == 2
+    err = capsys.readouterr().err
+    assert "duration 0.05 s is shorter than the timestep 0.5 s" in err
+    assert not (out / "timeseries.csv").exists() and not (out / "run.json").exists()
+
+
 def test_recorded_com_velocity_is_mujocos_object_velocity():
     import mujoco
 

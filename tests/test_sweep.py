@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -269,6 +270,27 @@ depth_m = {{ kind = "final_depth", body = "ellipsoid" }}
     assert "1 of 3 runs failed" in printed.err
 
 
+def test_a_run_shorter_than_its_timestep_is_a_failed_row_naming_both(tmp_path):
+    path = tmp_path / "short.toml"
+    path.write_text("""
+[study]
+model = "sphere_drop"
+duration = 0.05
+[parameters.timestep]
+path = "timestep"
+values = [0.001, 0.5]
+[set]
+triangles = 60
+[metrics]
+depth_m = { kind = "final_depth", body = "sphere" }
+""")
+    summary = run_study(Study.load(path), tmp_path / "out", backend="serial")
+    rows = {r["timestep"]: r for r in load_results(tmp_path / "out")}
+    assert summary.computed == 2 and summary.failed == 1 and rows[0.001]["status"] == "ok"
+    assert rows[0.5]["status"] == "failed" and math.isnan(rows[0.5]["depth_m"])
+    assert "duration 0.05 s is shorter than the timestep 0.5 s" in rows[0.5]["error"]
+
+
 # (the change to the first parameter, pieces of the message in order)
 BAD = [
     ('path = "bdy.plate.pos"', ["unknown path 'bdy.plate.pos'; valid forms: <kind>.<name>"]),
@@ -292,6 +314,27 @@ def test_a_bad_parameter_is_refused_naming_its_path_and_what_is_valid(tmp_path, 
     pattern = ".*".join(re.escape(p) for p in ["parameters.pitch_deg", *pieces])
     with pytest.raises(StudyError, match=pattern):
         Study.from_toml(text)
+
+
+def test_a_study_of_too_many_runs_is_refused_naming_the_count_before_they_exist(tmp_path):
+    text = plate_study(tmp_path).read_text()
+    tracemalloc.start()
+    for rng, count in (("num = 1_000_000_000", "1,000,000,000"), ("step = 1e-9", "1,000,000,001")):
+        huge = text.replace("values = [0, 20]", f"range = {{ start = 0, stop = 1, {rng} }}", 1)
+        with pytest.raises(StudyError, match=rf"parameters\.pitch_deg\]: the range has {count} "
+                           r"values, more than the 1,000,000 runs a study may have"):  # fmt: skip
+            Study.from_toml(huge)
+    grid = text.replace("values = [0, 20]", "range = { start = 0, stop = 1, num = 250_001 }", 1)
+    with pytest.raises(StudyError, match=r"the study has 1,000,004 runs \(the grid of pitch_deg "
+                       r"250,001 x speed 2 x triangles 2\), more than the 1,000,000"):  # fmt: skip
+        Study.from_toml(grid)
+    drawn = text.replace("[study]", '[study]\nsampling = "random"\nsamples = 1_000_001', 1)
+    with pytest.raises(StudyError, match=r"1,000,001 runs \(samples = 1,000,001\), more than"):
+        Study.from_toml(drawn)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    # refused before any run exists: a million listed runs take ~400 MB (0.4 kB each)
+    assert peak < 50e6
 
 
 def test_an_unknown_metric_or_name_is_refused_listing_the_valid_ones(tmp_path):

@@ -72,7 +72,8 @@ def test_the_warp_law_equals_element_forces(preset, dynamic):
     if dynamic:
         material = material.with_dynamic(1500.0, 0.8)
     want = mjrft.element_forces(pos, normal, area, vel, material, surface_z=0.002)
-    got = mw.element_forces(pos, normal, area, vel, material, surface_z=0.002, device=DEVICE)
+    given = material if dynamic else preset  # a preset's name is the preset
+    got = mw.element_forces(pos, normal, area, vel, given, surface_z=0.002, device=DEVICE)
     assert np.count_nonzero(np.any(want != 0.0, axis=1)) > 5000  # the test has teeth
     assert_forces_close(got, want, RTOL_LAW)
 
@@ -244,6 +245,25 @@ def test_the_users_part_of_xfrc_applied_survives():
             d.xfrc_applied.numpy(), want + rft.astype(np.float32), rtol=0, atol=1e-7
         )
     np.testing.assert_array_equal(d.xfrc_applied.numpy(), want)  # the user's values, restored
+
+
+def test_a_field_refuses_another_models_model_and_data_naming_both():
+    mjm, mjd = load("sphere_drop")
+    field = mw.WarpField(mjm, device=DEVICE)
+    spec = spec_of("sphere_drop")  # the same sizes, a 4 cm box where the 1 cm sphere was
+    spec.geom("sphere").type = mujoco.mjtGeom.mjGEOM_BOX
+    spec.geom("sphere").size = [0.02, 0.02, 0.02]
+    with pytest.raises(ValueError, match=r"not made from the WarpField's model 'sphere_drop' "
+                       r"\(geom_type; the intruding geoms' geom_size differ\)"):  # fmt: skip
+        field.install(mjw.put_model(spec.compile()))
+    dune, dune_d = load("dune_drop")
+    with pytest.raises(ValueError, match=r"sizes nq=21, nv=18, nbody=4.*not nq=7, nv=6, nbody=2"):
+        field.install(mjw.put_model(dune))
+    with pytest.raises(ValueError, match=r"another model \(nq=21.*'sphere_drop' \(nq=7, nv=6"):
+        field.prepare(mjw.put_data(dune, dune_d, nworld=1))
+    m = mjw.put_model(mjm)
+    with field.installed(m):  # its own model and data are served
+        field.prepare(mjw.put_data(mjm, mjd, nworld=1))
 
 
 def mechanical_energy(mjm, qpos, qvel):

@@ -224,6 +224,7 @@ def _run(args: argparse.Namespace) -> int:
     out = _check_outputs(args)
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, xml)
+    simulate.step_count(args.duration, model.opt.timestep)  # refused before anything is written
     columns = simulate.new_recording(model, fld).columns
     run = _RunInfo(xml, model, fld, keyframe)
     # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).

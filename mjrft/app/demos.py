@@ -12,7 +12,7 @@ import numpy as np
 
 from mjrft.core import geometry
 from mjrft.core.body import trajectory_wrenches
-from mjrft.core.material import Material
+from mjrft.core.material import Material, as_material
 from mjrft.core.units import CM, DEG, MM
 
 # --- Mole-crab ellipsoid (Pacific mole crab, Emerita analoga): 36.1 mm tall x 19.2 mm wide/deep,
@@ -81,7 +81,7 @@ def _rot_z(a: np.ndarray) -> np.ndarray:
 def ellipsoid_pitch(
     *,
     n_triangles: int = 4000,
-    material: Material | None = None,
+    material: Material | str | None = None,
     dt: float = 0.01,
     duration: float = ELLIPSOID_DURATION,
     amplitude: float = ELLIPSOID_PITCH_AMPLITUDE,
@@ -93,7 +93,7 @@ def ellipsoid_pitch(
       material: the medium (default glass beads, zeta = 0.33 N/cm^3, Li generic coefficients).
       dt: sample spacing [s]; duration: [s]; amplitude: pitch amplitude [rad] (0: no oscillation).
     """
-    material = material or Material.preset("glass_beads")
+    material = as_material("glass_beads" if material is None else material)
     elements = geometry.ellipsoid(ELLIPSOID_SEMI_AXES, n_triangles=n_triangles)
     t = np.arange(0.0, duration + 0.5 * dt, dt)
     w = 2.0 * np.pi * ELLIPSOID_PITCH_FREQUENCY
@@ -126,7 +126,7 @@ def ellipsoid_pitch(
 def root_circumnutation(
     *,
     n_triangles: int = 4000,
-    material: Material | None = None,
+    material: Material | str | None = None,
     dt: float = 0.1,
     duration: float = ROOT_DURATION,
 ) -> DemoResult:
@@ -135,7 +135,7 @@ def root_circumnutation(
     The pivot (on the axis, ROOT_PIVOT_ABOVE_APEX above the apex) starts at the surface and
     descends 4 cm per turn, so the tip traces a helix, as in the authors' circumnutation demo.
     """
-    material = material or Material.preset("glass_beads")
+    material = as_material("glass_beads" if material is None else material)
     # Paraboloid apex at the shape origin pointing down; move the pivot to the body origin.
     shape = geometry.paraboloid(ROOT_RADIUS, ROOT_LENGTH, n_triangles=n_triangles)
     elements = shape.transformed(np.eye(3), np.array([0.0, 0.0, -ROOT_PIVOT_ABOVE_APEX]))

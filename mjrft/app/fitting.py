@@ -7,6 +7,8 @@ the plate, z up). Optional yawed plates: with columns ``yaw_deg`` and ``fy_N`` (
 turned out of the x-z plane towards +y by the yaw, ``mjrft.core.fit.YawedPlateData``), the rows
 at yaw 0 give the in-plane coefficients and the others the out-of-plane coefficient
 alpha_y(beta) and the scaling functions f1, f23 (``fit_yawed``). Other columns are ignored.
+A row that repeats an earlier one in every column read is refused, naming the file and the rows
+(``mjrft.core.fit``'s docstring says why).
 """
 
 from __future__ import annotations
@@ -18,7 +20,18 @@ from pathlib import Path
 
 import numpy as np
 
-from mjrft.core.fit import SETS, Fit, FitError, PlateData, YawedPlateData, YawFit, basis, fit
+from mjrft.core.fit import (
+    SETS,
+    Fit,
+    FitError,
+    PlateData,
+    YawedPlateData,
+    YawFit,
+    basis,
+    fit,
+    repeated_rows,
+    repeats_message,
+)
 from mjrft.core.units import N_PER_CM3
 from mjrft.field.scene import COEFFICIENT_ORDER
 
@@ -76,6 +89,9 @@ def _read(p: Path) -> tuple[np.ndarray, np.ndarray | None]:
                 raise FitError(
                     f"{p}: row {i + 2}, column {c}: {row[c]!r} is not a number"
                 ) from None
+    pairs = repeated_rows(values)
+    if pairs:
+        raise FitError(repeats_message(pairs, str(p), offset=2))  # the CSV's line numbers
     n = len(COLUMNS)
     return values[:, :n], (values[:, n:] if yaw else None)
 

@@ -287,7 +287,8 @@ def run(
     Args:
       model: a model from ``load_model`` (``mjrft.load_model``: it carries the engine plugin),
         timestep/integrator already configured.
-      duration: simulated time [s], > 0.
+      duration: simulated time [s], at least the model's timestep; the run takes
+        ``step_count(duration, timestep)`` steps.
       fld: the field (built from the model if None).
       record_every: record one row every this many steps (the initial state is always recorded).
       progress: called with the fraction done, about 100 times over the run.
@@ -306,11 +307,11 @@ def run(
     Returns:
       (final MjData, Recording).
     Raises:
+      ValueError if the duration is not at least one timestep (``step_count``).
       RunDiverged if MuJoCo warns of a diverging state (and resets it) in a step: the rows
       before that step are recorded, none after.
     """
-    if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a finite number > 0 s, got {duration}")
+    n_steps = step_count(duration, model.opt.timestep)
     if record_every < 1:
         raise ValueError(f"record_every must be >= 1, got {record_every}")
     if observe_every < 1:
@@ -319,7 +320,6 @@ def run(
     rec = recording or new_recording(model, fld)
     data = reset_data(model, keyframe)
     apply_ctrl = checked_controller(model, ctrl)
-    n_steps = max(1, round(duration / model.opt.timestep))
     tick = max(1, n_steps // 100)
     # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
     # wrench at the pre-step state, so that state is recorded after the step at no extra cost.
@@ -359,6 +359,25 @@ def run(
     if observer is not None:
         observer(n_steps, data.time, data)
     return data, rec
+
+
+def step_count(duration: float, timestep: float) -> int:
+    """The number of steps of a `duration` [s] run at `timestep` [s]: round(duration / timestep),
+    so the run ends within half a step of `duration`.
+
+    Raises:
+      ValueError if the duration is not a finite time > 0 or is shorter than one timestep (one
+      step would end the run a whole timestep past it; a relative 1e-9 forgives rounding).
+    """
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a finite number > 0 s, got {duration}")
+    if duration < timestep * (1.0 - 1e-9):
+        raise ValueError(
+            f"duration {duration:g} s is shorter than the timestep {timestep:g} s: one step would "
+            f"end the run at t = {timestep:g} s; give a duration of at least one timestep or a "
+            "smaller timestep"
+        )
+    return round(duration / timestep)
 
 
 def reset_data(model: mujoco.MjModel, keyframe: int | None = 0) -> mujoco.MjData:

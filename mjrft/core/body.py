@@ -16,7 +16,7 @@ import numpy as np
 
 from mjrft.core import engine, surface
 from mjrft.core.elements import ElementSet
-from mjrft.core.material import Material
+from mjrft.core.material import Material, as_material
 from mjrft.core.rft import quadrature_forces
 
 
@@ -77,7 +77,7 @@ def body_wrench(
     rotation: np.ndarray,
     lin_vel: np.ndarray,
     ang_vel: np.ndarray,
-    material: Material,
+    material: Material | str,
     *,
     point: np.ndarray | None = None,
     surface_z: float = 0.0,
@@ -90,7 +90,7 @@ def body_wrench(
       rotation: (3, 3) body -> world matrix, or (4,) quaternion (w, x, y, z).
       lin_vel: (3,) velocity of the body-frame origin, world frame [m/s].
       ang_vel: (3,) angular velocity, world frame [rad/s].
-      material: the medium.
+      material: the medium, or a preset's name (``mjrft.PRESETS``).
       point: (3,) world point about which the moment is taken [m]; default the body origin.
       surface_z: free-surface height [m].
     Returns:
@@ -101,6 +101,7 @@ def body_wrench(
     lin_vel = _vec("lin_vel", lin_vel, (3,))
     ang_vel = _vec("ang_vel", ang_vel, (3,))
     c = position if point is None else _vec("point", point, (3,))
+    material = as_material(material)
     w = _trajectory(
         elements, position[None], rotation[None], lin_vel[None], ang_vel[None], c[None],
         material, surface_z,
@@ -141,7 +142,7 @@ def trajectory_wrenches(
     rotations: np.ndarray,
     lin_vels: np.ndarray,
     ang_vels: np.ndarray,
-    material: Material,
+    material: Material | str,
     *,
     points: np.ndarray | None = None,
     surface_z: float = 0.0,
@@ -154,7 +155,7 @@ def trajectory_wrenches(
       rotations: (T, 3, 3) body -> world matrices or (T, 4) quaternions (w, x, y, z).
       lin_vels: (T, 3) velocity of the body-frame origin, world frame [m/s].
       ang_vels: (T, 3) angular velocity, world frame [rad/s].
-      material: the medium.
+      material: the medium, or a preset's name (``mjrft.PRESETS``).
       points: (T, 3) world points for the moments [m]; default the body origin at each time.
       surface_z: free-surface height [m].
     Returns:
@@ -171,5 +172,6 @@ def trajectory_wrenches(
     points = positions if points is None else _vec("points", points, (t, 3))
     if not np.isfinite(float(surface_z)):
         raise ValueError(f"surface_z must be finite, got {surface_z}")
+    material = as_material(material)
     w = _trajectory(elements, positions, rotations, lin_vels, ang_vels, points, material, surface_z)
     return Wrench(w[:, :3], w[:, 3:])

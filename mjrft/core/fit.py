@@ -19,6 +19,13 @@ Two coefficient sets:
 
 Confidence intervals are the normal-theory ones, coefficient +- z se, se from the residual
 variance times (X^T X)^-1 (X the design matrix); Z95 for 95 %.
+
+Rows that repeat an earlier row in every column (angles, depth, area and forces) are refused,
+naming them (``repeated_rows``): such a row is the same measurement counted again (a file
+concatenated twice, rows pasted twice), and k copies would narrow every interval by 1/sqrt(k)
+with no new information. Refusing, not dropping, because a copy means the data are not what their
+author believes, which only the author can mend. Replicates, plates at the same angles, depth and
+area with their own measured forces, are independent measurements and are fitted.
 """
 
 from __future__ import annotations
@@ -157,7 +164,34 @@ def _columns(data, label: str) -> dict[str, np.ndarray]:
     for f, a in arrays.items():
         if not np.all(np.isfinite(a)):
             raise FitError(f"{label} column {f} has non-finite values (row {_first(a)})")
+    pairs = repeated_rows(np.stack(list(arrays.values()), axis=1))
+    if pairs:
+        raise FitError(repeats_message(pairs, label))
     return arrays
+
+
+def repeated_rows(values: np.ndarray) -> list[tuple[int, int]]:
+    """(row, earlier row) of every row of the (n, columns) `values` equal to an earlier one in
+    every column (module docstring)."""
+    first: dict[tuple[float, ...], int] = {}
+    pairs = []
+    for i, row in enumerate(np.asarray(values, dtype=float).tolist()):
+        j = first.setdefault(tuple(row), i)
+        if j != i:
+            pairs.append((i, j))
+    return pairs
+
+
+def repeats_message(pairs: list[tuple[int, int]], label: str, offset: int = 0) -> str:
+    """The refusal of the repeated `pairs` (``repeated_rows``) of `label`, rows numbered from
+    `offset`."""
+    shown = ", ".join(f"row {i + offset} = row {j + offset}" for i, j in pairs[:5])
+    more = f" and {len(pairs) - 5} more" if len(pairs) > 5 else ""
+    return (
+        f"{label}: {len(pairs)} row(s) repeat an earlier row in every column ({shown}{more}): "
+        "the same measurement counted twice narrows the 95 % intervals with no new information; "
+        "remove the repeats (replicates with their own measured forces are kept)"
+    )
 
 
 def _check(data: PlateData) -> None:

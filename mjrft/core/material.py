@@ -806,3 +806,20 @@ PRESETS: Mapping[str, Callable[[], Material]] = MappingProxyType(
         "generic_1ncm3": _li_generic_unit,
     }
 )
+
+
+def as_material(value: Material | str, argument: str = "material") -> Material:
+    """`value` as a Material: a Material itself, or a preset's name (``Material.preset``, as
+    ``GranularField`` and the environments take it). Raises ValueError for an unknown name and
+    TypeError for anything else, each naming `argument` and the presets."""
+    if isinstance(value, Material):
+        return value
+    if isinstance(value, str):
+        try:
+            return Material.preset(value)
+        except ValueError as exc:
+            raise ValueError(f"{argument}={value!r}: {exc}") from None
+    raise TypeError(
+        f"{argument} must be a mjrft.Material or a preset name ({', '.join(sorted(PRESETS))}), "
+        f"got {type(value).__name__}"
+    )

@@ -24,7 +24,7 @@ import numpy as np
 import warp as wp
 
 from mjrft.core import surface as core_surface
-from mjrft.core.material import Material
+from mjrft.core.material import Material, as_material
 from mjrft.field import plugin
 from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
@@ -218,6 +218,20 @@ def _check_plain(model: mujoco.MjModel) -> None:
         )
 
 
+def _model_name(model: mujoco.MjModel) -> str:
+    """The MJCF's ``<mujoco model=...>`` name (the first of the model's names)."""
+    return bytes(model.names).split(b"\0", 1)[0].decode() or "(unnamed)"
+
+
+def _sizes(nq: int, nv: int, nbody: int, ngeom: int) -> str:
+    return f"nq={nq}, nv={nv}, nbody={nbody}, ngeom={ngeom}"
+
+
+#: A model's structure the field's tables depend on: integer arrays (never batched per world)
+#: whose values a MuJoCo Warp model of the same MjModel shares exactly.
+_STRUCTURE = ("body_parentid", "jnt_type", "geom_type", "geom_bodyid")
+
+
 @dataclass
 class _Worlds:
     """Per-``mjw.Data`` arrays of the field (nworld rows each)."""
@@ -248,6 +262,12 @@ class WarpField:
       UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
       model, callable materials, the deforming ground. SceneError as ``mjrft.load_model``.
       ValueError for a model that carries the engine plugin.
+
+    A field serves the MuJoCo Warp model and data of its own model only: ``install`` refuses an
+    ``mjw.Model`` whose sizes, body tree, joint or geom types, geom bodies or intruding geoms'
+    sizes differ from it, and every method taking an ``mjw.Data`` refuses one whose sizes (nq,
+    nv, nbody, ngeom) differ (an ``mjw.Data`` does not know its model), both with a ValueError
+    naming the two.
 
     The element tables are the engine's (``mjrft.field.plugin.setup``: the same meshing,
     culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine).
@@ -332,6 +352,7 @@ class WarpField:
         st = self._worlds.get(id(d))
         if st is not None and st.owner() is d:
             return st
+        self._check_data(d)
         nworld = int(d.nworld)
         if self.device.is_cuda:
             check_memory(nworld, self.bytes_per_world(), self.device, self.device.free_memory)
@@ -352,6 +373,38 @@ class WarpField:
         self._worlds = {k: v for k, v in self._worlds.items() if v.owner() is not None}
         self._worlds[id(d)] = st
         return st
+
+    def _check_data(self, d) -> None:
+        """Raise ValueError if the mjw.Data d's sizes are not this field's model's."""
+        mine = self.model
+        want = (mine.nq, mine.nv, mine.nbody, mine.ngeom)
+        got = tuple(int(a.shape[1]) for a in (d.qpos, d.qvel, d.xpos, d.geom_xpos))
+        if got != want:
+            raise ValueError(
+                f"this mjw.Data belongs to another model ({_sizes(*got)}) than the WarpField's "
+                f"model {_model_name(mine)!r} ({_sizes(*want)}): build one WarpField per model"
+            )
+
+    def _check_model(self, m) -> None:
+        """Raise ValueError if the mjw.Model m was not made from this field's model
+        (``mjw.put_model``), naming what differs."""
+        mine = self.model
+        want = (mine.nq, mine.nv, mine.nbody, mine.ngeom)
+        got = (int(m.nq), int(m.nv), int(m.nbody), int(m.ngeom))
+        differ = [] if got == want else [f"sizes {_sizes(*got)}, not {_sizes(*want)}"]
+        if not differ:
+            for name in _STRUCTURE:
+                if not np.array_equal(getattr(m, name).numpy(), getattr(mine, name)):
+                    differ.append(name)
+            tagged = np.unique(np.asarray(self.setup.tables["tgeom_geomid"], dtype=np.int64))
+            size = m.geom_size.numpy().reshape(-1, mine.ngeom, 3)[:, tagged]  # every world
+            if not np.allclose(size, mine.geom_size[tagged], rtol=1e-6, atol=0.0):
+                differ.append("the intruding geoms' geom_size")
+        if differ:
+            raise ValueError(
+                f"this mjw.Model was not made from the WarpField's model {_model_name(mine)!r} "
+                f"({'; '.join(differ)} differ): build one WarpField per model"
+            )
 
     def prepare(self, d) -> None:
         """Allocate the field's arrays for d now (before capturing a CUDA graph of mjw.step)."""
@@ -396,7 +449,9 @@ class WarpField:
 
     def install(self, m) -> None:
         """Make the field mjw.Model m's passive callback (chained after any callback already
-        there), so every forward pass of ``mjw.step`` applies it."""
+        there), so every forward pass of ``mjw.step`` applies it. Raises ValueError for an
+        mjw.Model of another model."""
+        self._check_model(m)
         prev = m.callback.passive
         if getattr(prev, "__self__", None) is self:
             return
@@ -451,16 +506,18 @@ def element_forces(
     normal: np.ndarray,
     area: np.ndarray,
     vel: np.ndarray,
-    material: Material,
+    material: Material | str,
     surface_z: float = 0.0,
     device: str | None = None,
 ) -> np.ndarray:
     """``mjrft.element_forces`` evaluated by the Warp law (float64) on a Warp device.
 
     Args: (n, 3) centroids [m], (n, 3) unit normals, (n,) areas [m^2], (n, 3) velocities
-    [m/s], all world frame; material (Fourier form, treers2021); surface_z [m].
+    [m/s], all world frame; material (Fourier form, treers2021), or a preset's name;
+    surface_z [m].
     Returns: (n, 3) forces [N], world frame.
     """
+    material = as_material(material)
     if not material.compiled or material.fourier is None:
         raise UnsupportedScene(
             f"mjrft.warp.element_forces: material {material.name!r} is not a Fourier-form "
