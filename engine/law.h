@@ -42,6 +42,12 @@ using Buf = f64[kBufRows][kChunk];
 // |n_z| at or above this marks a nearly horizontal plate (docs/design.md 2.2): its frame comes
 // from the velocity.
 constexpr f64 kHorizontalPlateNz = 1.0 - 1.0e-3;
+
+// An element leads iff n . v > kLeadingSlack |v| (unit n; docs/design.md 2.1): a face parallel
+// to the motion gets n . v of a few epsilons times |v| from the rotation and twist that give
+// its normal and velocity, not 0. Mirrors mjrft.core.law.LEADING_SLACK (16 float64 epsilons).
+constexpr f64 kLeadingSlack = 16.0 * 2.220446049250313e-16;
+
 // Fitted scaling functions of the 3D decomposition (Treers et al. 2021, docs/design.md 2.7),
 // f1 = gain (tanh(slope |v1| - shift) + tanh(shift)) / norm, f23 likewise with atanh.
 constexpr f64 kF1Gain = 0.440850096954369, kF1Slope = 3.62263982880971, kF1Shift = 1.60910808139526,
@@ -104,10 +110,10 @@ inline f64 Max(f64 a, f64 b) { return b > a ? b : a; }
 inline f64 Min(f64 a, f64 b) { return b < a ? b : a; }
 
 // Writes element i at slot k of the chunk (rows 0-8 of buf, idx); returns k + 1 if it acts
-// (depth > 0, inside, leading: n . w > 0), else k, so the slot is reused (branch-free
-// compaction). n: unit normal, w: velocity [m/s] (any scale), depth [m], area [m^2] (or depth 1
-// and the depth integral W [m^3] as area); world frame. The velocity is rescaled only when
-// |w|^2 leaves [kW2Min, kW2Max], and h is normalised here only for nearly horizontal plates
+// (depth > 0, inside, leading: n . w > kLeadingSlack |w|), else k, so the slot is reused
+// (branch-free compaction). n: unit normal, w: velocity [m/s] (any scale), depth [m], area [m^2]
+// (or depth 1 and the depth integral W [m^3] as area); world frame. The velocity is rescaled only
+// when |w|^2 leaves [kW2Min, kW2Max], and h is normalised here only for nearly horizontal plates
 // (rare), whose frame comes from the horizontal velocity, or world x if there is none.
 inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 wx, f64 wy, f64 wz,
                   f64 depth, f64 area, bool inside) {
@@ -120,7 +126,10 @@ inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 
       wz = wz / m;
     }
   }
-  f64 dot = nx * wx + ny * wy + nz * wz;  // <= 0: trailing, moving in the plate, or at rest
+  // Not above kLeadingSlack |w|: trailing, moving in the plate (up to rounding), or at rest.
+  f64 dot = nx * wx + ny * wy + nz * wz;
+  bool lead =
+      (dot > 0.0) & (dot * dot > kLeadingSlack * kLeadingSlack * (wx * wx + wy * wy + wz * wz));
   f64 hx = nx, hy = ny;
   if (std::fabs(nz) >= kHorizontalPlateNz) {
     f64 m = Max(std::fabs(wx), std::fabs(wy));
@@ -145,7 +154,7 @@ inline int Gather(Buf& buf, i64* idx, int k, i64 i, f64 nx, f64 ny, f64 nz, f64 
   buf[kWx + 2][k] = wz;
   buf[kDepthArea][k] = depth * area;
   idx[k] = i;
-  return k + ((depth > 0.0) & inside & (dot > 0.0));
+  return k + ((depth > 0.0) & inside & lead);
 }
 
 // Forces (rows 9-11) on the k gathered elements of buf under Treers et al.'s law: co (18,) the

@@ -210,8 +210,10 @@ void CornerValues(const f64* patch, const f64* cent, const i64* later, Held& hel
       f64 o0 = pr[3 * q], o1 = pr[3 * q + 1], o2 = pr[3 * q + 2];
       f64 cx = bx + o0, cy = by + o1, cz = bz + o2;
       const f64* g = pr + kPatchNormal + 3 * q;
-      held[kHeldS + q][j] = g[0] * (lx + gy * cz - gz * cy) + g[1] * (ly + gz * cx - gx * cz) +
-                            g[2] * (lz + gx * cy - gy * cx);
+      // n . v less law::kLeadingSlack |v|: a corner leads iff this is > 0 (law::Gather's rule).
+      f64 vx = lx + gy * cz - gz * cy, vy = ly + gz * cx - gx * cz, vz = lz + gx * cy - gy * cx;
+      held[kHeldS + q][j] = g[0] * vx + g[1] * vy + g[2] * vz -
+                            law::kLeadingSlack * std::sqrt(vx * vx + vy * vy + vz * vz);
       f64 z = held[kHeldPoint + 2][j] + (r20 * o0 + r21 * o1 + r22 * o2);
       held[kHeldD + q][j] = top - z;
     }

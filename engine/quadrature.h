@@ -35,8 +35,8 @@ constexpr f64 kUnevenReach = 2.0;
 
 // Rows of the held scratch (f64[kHeld][kChunk]), for the elements whose corners are tested
 // after a chunk's one-point pass: depth at the centroid [m]; point (3) [m], normal (3) and
-// velocity (3) [m/s] of the one-point rule (world frame); corner depths (3) [m]; corner n . v
-// (3) [m/s].
+// velocity (3) [m/s] of the one-point rule (world frame); corner depths (3) [m]; corner
+// n . v - law::kLeadingSlack |v| (3) [m/s], > 0 where the corner leads.
 enum HeldRow {
   kHeldDepth = 0,
   kHeldPoint = 1,

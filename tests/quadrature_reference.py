@@ -12,6 +12,7 @@ import numpy as np
 
 from mjrft.core import quadrature
 from mjrft.core.elements import ElementSet
+from mjrft.core.law import LEADING_SLACK
 from mjrft.core.rft import numpy_forces
 
 
@@ -83,7 +84,9 @@ def element_forces(
         cn = patch[i, 9:18].reshape(3, 3) @ rot.T
         vc = v_ref + np.cross(omega, corners - p_ref)
         d = depth_of(corners)
-        w, lam = clipped_part(d, np.einsum("ij,ij->i", cn, vc), areas[i])
+        # A corner leads iff n . v > LEADING_SLACK |v| (docs/design.md 2.1).
+        lead = np.einsum("ij,ij->i", cn, vc) - LEADING_SLACK * np.linalg.norm(vc, axis=1)
+        w, lam = clipped_part(d, lead, areas[i])
         if w > 0.0:
             x, nn = lam @ corners, lam @ cn
             # blended into the one-point rule's values, fully at the band's edge

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from mjrft.core.law import LEADING_SLACK
 from mjrft.core.material import HARMONICS, Material
 
 
@@ -47,7 +48,8 @@ def reference_forces(pos, normal, area, vel, material: Material, surface_z=0.0) 
         if depth <= 0 or speed == 0:
             continue
         vh = [x / speed for x in v]
-        if n[0] * vh[0] + n[1] * vh[1] + n[2] * vh[2] <= 0:
+        # Leading iff n . v^ > LEADING_SLACK (docs/design.md 2.1): zero up to rounding is not.
+        if n[0] * vh[0] + n[1] * vh[1] + n[2] * vh[2] <= LEADING_SLACK:
             continue
         # e2: horizontal projection of n, or of v^ for a nearly horizontal plate, or world x.
         if abs(n[2]) >= 1 - 1e-3:

@@ -12,6 +12,13 @@ import numpy as np
 #: from v.
 HORIZONTAL_PLATE_NZ = 1.0 - 1.0e-3
 
+#: An element leads iff n . v > LEADING_SLACK |v| (unit n; docs/design.md 2.1). A face parallel
+#: to the motion, its normal and velocity taken through a rotation and a twist, has n . v of
+#: a few float64 epsilons times |v| rather than 0 (a cylinder's end cap rotated onto an axle:
+#: n . v / |v| about 1 eps), which a strict n . v > 0 would count as leading half the time;
+#: 16 eps covers that rounding and is far below any real incidence (sin 3.6e-15 rad).
+LEADING_SLACK = 16.0 * float(np.finfo(np.float64).eps)
+
 # Fitted scaling functions of the 3D decomposition (Treers et al. 2021, docs/design.md 2.7); both
 # map [0, 1] -> [0, 1] with f(0) = 0 and f(1) = 1.
 F1_GAIN, F1_SLOPE, F1_SHIFT, F1_NORM = (

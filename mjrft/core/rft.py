@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from mjrft.core import engine
-from mjrft.core.law import HORIZONTAL_PLATE_NZ, f1, f23
+from mjrft.core.law import HORIZONTAL_PLATE_NZ, LEADING_SLACK, f1, f23
 from mjrft.core.material import HARMONICS, Material, as_material
 
 
@@ -162,8 +162,10 @@ def numpy_forces(
     out = np.zeros_like(pos)
     depth = surface_z - pos[:, 2]
     v_hat, speed = _unit_rows(vel)
-    # docs/design.md 2.1: only submerged, leading, moving elements feel force.
-    active = (depth > 0.0) & (speed > 0.0) & (np.einsum("ij,ij->i", n_hat, v_hat) > 0.0)
+    # docs/design.md 2.1: only submerged, leading (n . v^ > LEADING_SLACK), moving elements
+    # feel force.
+    lead = np.einsum("ij,ij->i", n_hat, v_hat) > LEADING_SLACK
+    active = (depth > 0.0) & (speed > 0.0) & lead
     idx = np.flatnonzero(active)
     if idx.size == 0:
         return out

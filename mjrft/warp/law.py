@@ -24,12 +24,14 @@ from mjrft.core.law import (
     F23_SHIFT,
     F23_SLOPE,
     HORIZONTAL_PLATE_NZ,
+    LEADING_SLACK,
 )
 
 f64 = wp.float64
 vec3d = wp.vec3d
 
 _ZERO = wp.constant(f64(0.0))
+_SLACK = wp.constant(f64(LEADING_SLACK))
 _ONE = wp.constant(f64(1.0))
 _HALF = wp.constant(f64(0.5))
 _TWO = wp.constant(f64(2.0))
@@ -79,7 +81,7 @@ def element_force(
         return vec3d(_ZERO, _ZERO, _ZERO)
     w = v / m  # rescaled first, so that squaring neither overflows nor underflows
     vh = w / wp.length(w)
-    if wp.dot(n, vh) <= _ZERO:
+    if wp.dot(n, vh) <= _SLACK:  # not leading (LEADING_SLACK: rounding)
         return vec3d(_ZERO, _ZERO, _ZERO)
     # Frame (docs/design.md 2.2): e2 horizontal along the normal, or along v for nearly
     # horizontal plates (world x if v is vertical); e1 = e2 x z.

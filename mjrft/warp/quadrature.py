@@ -13,6 +13,7 @@ from __future__ import annotations
 import warp as wp
 
 from mjrft.core import quadrature as q
+from mjrft.core.law import LEADING_SLACK
 from mjrft.warp import surface
 from mjrft.warp.law import f64, vec3d
 from mjrft.warp.surface import Surface
@@ -24,6 +25,7 @@ _TWELFTH = wp.constant(f64(1.0 / 12.0))
 _BAND = wp.constant(f64(q.UNEVEN_REACH))
 _NORMAL = wp.constant(q.PATCH_NORMAL)
 _SPREAD = wp.constant(q.PATCH_SPREAD)
+_SLACK = wp.constant(f64(LEADING_SLACK))
 #: A triangle clipped by two half-planes has at most 5 vertices (rows: barycentric points).
 mat83d = wp.types.matrix(shape=(8, 3), dtype=f64)
 
@@ -219,7 +221,8 @@ def quadrature_point(
         depth >= _BAND * reach and excess > _Z and excess * excess > spread * spread * wp.dot(v, v)
     )
     if not clear:
-        # Corner depths and corner n . v (body frame: v = lin_b + ang_b x c at the corner c).
+        # Corner depths and corner n . v - LEADING_SLACK |v|, > 0 where the corner leads (body
+        # frame: v = lin_b + ang_b x c at the corner c).
         ang_b = wp.transpose(rot) * omega
         lin_b = wp.transpose(rot) * (v_ref + wp.cross(omega, origin - p_ref))
         d = vec3d(_Z, _Z, _Z)
@@ -227,7 +230,8 @@ def quadrature_point(
         for k in range(3):
             o = _row3(patch, i, 3 * k)
             corner = cent + o
-            s[k] = wp.dot(_row3(patch, i, _NORMAL + 3 * k), lin_b + wp.cross(ang_b, corner))
+            vc = lin_b + wp.cross(ang_b, corner)
+            s[k] = wp.dot(_row3(patch, i, _NORMAL + 3 * k), vc) - _SLACK * wp.length(vc)
             if sf.kind == surface.FLAT:
                 d[k] = sf.z0 - (p[2] + (rot * o)[2])
             else:
@@ -251,7 +255,7 @@ def quadrature_point(
                          omega, v_ref, p_ref)  # fmt: skip
             out.a = a
             return out
-    if depth <= _Z or lead <= _Z:
+    if depth <= _Z or lead <= _SLACK * wp.length(v):
         return out
     out.w = depth * area
     out.a = area
