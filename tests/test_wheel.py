@@ -18,8 +18,8 @@ from mjrft.app import wheel
 # (benchmarks/wheel_slip.py, 1500 triangles, 15 cm passes).
 TRIANGLES = 600
 LENGTH = 0.08  # m
-# 5 mm resolves a 10-17 mm sinkage; at 10 mm the rut's walls are one cell and the rut trend
-# inverts (measured: torque 1.009x in the rut at s = 0.6).
+# 5 mm resolves a 10-17 mm sinkage (measured torque in the rut at s = 0.6: 0.984x at 5 mm,
+# 0.983x at 10 mm, where the rut's walls are one cell).
 CELL = 0.005  # m
 # Every move takes from one vertex what it gives another: only rounding drifts the volume.
 VOLUME_RTOL = 1e-9
@@ -46,7 +46,7 @@ def test_a_free_rolling_wheel_feels_resistance_and_a_slipping_one_pulls(fresh):
 
 def test_in_its_own_rut_the_wheel_needs_less_torque():
     first, rut = wheel.run(0.6, deform_cell=CELL, length=LENGTH, n_triangles=TRIANGLES, passes=2)
-    assert rut.torque < 0.99 * first.torque  # measured 0.962
+    assert rut.torque < 0.99 * first.torque  # measured 0.984
     # Without memory the ground is pristine again: the two passes agree.
     a, b = wheel.run(0.6, length=LENGTH, n_triangles=TRIANGLES, passes=2)
     assert b.torque == pytest.approx(a.torque, rel=1e-3)
