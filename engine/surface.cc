@@ -46,19 +46,35 @@ void SoilVertex(const f64* prm, const f64* grid, const f64* soil, i64 r, i64 c, 
   out[2] = soil[i + 2 * n];
 }
 
-f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+namespace {
+
+// A deforming grid's (h, c, p) interpolated at (x, y) over its cell's triangle: surface,
+// compacted level, memory [m].
+struct Levels {
+  f64 h, c, p;
+};
+Levels SoilLevels(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y) {
   Cell k = CellOf(prm, x, y);
   f64 v00[3], v10[3], v01[3], v11[3];
   SoilVertex(prm, grid, soil, k.r, k.c, v00);
   SoilVertex(prm, grid, soil, k.r, k.c + 1, v10);
   SoilVertex(prm, grid, soil, k.r + 1, k.c, v01);
   SoilVertex(prm, grid, soil, k.r + 1, k.c + 1, v11);
-  f64 h = Tri(v00[0], v10[0], v01[0], v11[0], k.fu, k.fv, k.upper);
-  if (z >= h + kSoilContact) return 0.0;
-  f64 depth = std::max(h - z, 0.0);
-  if (z < Tri(v00[1], v10[1], v01[1], v11[1], k.fu, k.fv, k.upper) + kSoilContact) {
-    depth += Tri(v00[2], v10[2], v01[2], v11[2], k.fu, k.fv, k.upper);
+  Levels out;
+  f64* level[3] = {&out.h, &out.c, &out.p};
+  for (int i = 0; i < 3; i++) {
+    *level[i] = Tri(v00[i], v10[i], v01[i], v11[i], k.fu, k.fv, k.upper);
   }
+  return out;
+}
+
+}  // namespace
+
+f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+  Levels at = SoilLevels(prm, grid, soil, x, y);
+  if (z >= at.h + kSoilContact) return 0.0;
+  f64 depth = std::max(at.h - z, 0.0);
+  if (z < at.c + kSoilContact) depth += at.p;
   return depth;
 }
 
@@ -67,13 +83,7 @@ f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y) {
   if (kind == kFlat) return prm[kZ0];
   if (kind == kPlane) return prm[kZ0] + prm[kGx] * x + prm[kGy] * y;
   if (kind == kGrid) return GridHeight(prm, grid, x, y);
-  Cell k = CellOf(prm, x, y);
-  f64 v00[3], v10[3], v01[3], v11[3];
-  SoilVertex(prm, grid, soil, k.r, k.c, v00);
-  SoilVertex(prm, grid, soil, k.r, k.c + 1, v10);
-  SoilVertex(prm, grid, soil, k.r + 1, k.c, v01);
-  SoilVertex(prm, grid, soil, k.r + 1, k.c + 1, v11);
-  return Tri(v00[0], v10[0], v01[0], v11[0], k.fu, k.fv, k.upper);
+  return SoilLevels(prm, grid, soil, x, y).h;
 }
 
 f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
