@@ -31,7 +31,8 @@ def test_installed_command_runs():
 # Every scene option, each different from the shipped wheel rig's own values.
 SCENE_ARGS = ["--material", "poppy_seeds_lp", "--triangles", "300", "--low-speed", "free",
               "--stick-reach", "3", "--deform-cell", "0.01", "--repose", "25",
-              "--deform-every", "2", "--dynamic", "1500", "0.8"]  # fmt: skip
+              "--deform-every", "2", "--dynamic", "1500", "0.8",
+              "--intruders", "geoms=wheel", "--intruders", "match=whe*"]  # fmt: skip
 
 
 @pytest.mark.parametrize("command", ["run", "view"])
@@ -46,10 +47,12 @@ def test_every_scene_option_reaches_load_model_through_scene_options(command):
     assert options == SceneOptions(
         material="poppy_seeds_lp", n_triangles=300, low_speed="free", stick_reach=3.0,
         deform_cell=0.01, repose=25.0, deform_every=2, dynamic=(1500.0, 0.8),
+        intruders={"geoms": ["wheel"], "match": ["whe*"]},
     )  # fmt: skip
     _, _, fld = cli._scene(args, "wheel_rig")
     assert fld.material.name.startswith("poppy_seeds_lp") and fld.material.dynamic == 1200.0
     assert (fld.low_speed.mode, fld.low_speed.reach) == ("free", 3.0) and fld.deforms
+    assert [i.name for i in fld.scene.intruders] == ["wheel"]  # selected twice, tagged once
     triangles = [GranularField(simulate.load_model("wheel_rig", n_triangles=n)).n_elements
                  for n in (300, None)]  # fmt: skip
     assert fld.n_elements == triangles[0] != triangles[1]

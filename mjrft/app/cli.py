@@ -787,6 +787,7 @@ SCENE_OPTIONS = {
     "material": "material", "n_triangles": "triangles", "tolerance": "tolerance",
     "low_speed": "low_speed", "stick_reach": "stick_reach", "deform_cell": "deform_cell",
     "repose": "repose", "deform_every": "deform_every", "dynamic": "dynamic",
+    "intruders": "intruders",
 }  # fmt: skip
 
 
@@ -799,6 +800,11 @@ def scene_options(args: argparse.Namespace):
     dynamic = given["dynamic"]
     if isinstance(dynamic, list):  # --dynamic RHO_C [LAMBDA]
         given["dynamic"] = dynamic[0] if len(dynamic) == 1 else tuple(dynamic)
+    if given["intruders"] is not None:  # --intruders FORM=NAMES, repeated
+        selections: dict[str, list[str]] = {}
+        for form, names in given["intruders"]:
+            selections.setdefault(form, []).extend(names.split())
+        given["intruders"] = selections
     return SceneOptions(**given)
 
 
@@ -918,6 +924,31 @@ def _add_scene_options(r) -> None:
         metavar="R",
         help="the treatment's reach (default: the model's mjrft:stick_reach, else 4)",
     )
+    r.add_argument(
+        "--intruders",
+        type=_intruder_selection,
+        action="append",
+        default=None,
+        metavar="FORM=NAMES",
+        help="the geoms that feel the medium, instead of the model's mjrft:intruders tagging: FORM "
+        "is geoms, bodies, subtree, match (glob patterns on geom names) or collision, NAMES one "
+        "or more names separated by spaces, e.g. --intruders 'match=*foot* *calf*'; repeat it "
+        "to add selections (docs/mjcf.md)",
+    )
+
+
+#: The selection forms of --intruders (mjrft.field.scene.INTRUDER_FORMS).
+INTRUDER_FORMS = ("geoms", "bodies", "subtree", "match", "collision")
+
+
+def _intruder_selection(text: str) -> tuple[str, str]:
+    form, sep, names = text.partition("=")
+    if not sep or form not in INTRUDER_FORMS or not names.split():
+        raise argparse.ArgumentTypeError(
+            f"expected FORM=NAMES with FORM one of {', '.join(INTRUDER_FORMS)} and at least one "
+            f"name, e.g. 'match=*foot*'; got {text!r}"
+        )
+    return form, names
 
 
 def _add_recording_options(r) -> None:

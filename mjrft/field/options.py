@@ -28,6 +28,12 @@ class SceneOptions:
       deform_every: steps between its updates (``mjrft:deform_every``).
       dynamic: the dynamic RFT term's rho_c [kg/m^3] or (rho_c, lambda), 0 off
         (``mjrft:dynamic``).
+      intruders: the geoms that feel the medium, instead of the MJCF's ``mjrft:intruders``
+        tuple and ``mjrft:intruders_*`` texts: a dict of selections, each a list of names or
+        one string of space-separated names, their union taken: ``geoms``, ``bodies`` (all
+        their geoms), ``subtree`` (a body's and its descendants' geoms; "world": every body's),
+        ``match`` (glob patterns on geom names) and ``collision`` (the collision geoms of
+        subtrees), e.g. ``{"match": "*foot* *calf*"}`` (docs/mjcf.md).
     """
 
     material: Any = None
@@ -39,6 +45,7 @@ class SceneOptions:
     repose: float | None = None
     deform_every: int | None = None
     dynamic: float | tuple[float, float] | None = None
+    intruders: dict[str, Any] | None = None
 
     @classmethod
     def of(cls, options: SceneOptions | None = None, **overrides: Any) -> SceneOptions:

@@ -39,6 +39,12 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          or a tolerance in (0, 1), e.g. 0.02
         <element objtype="body" objname="robot_foot" prm="0"/>
       </tuple>
+      <text name="mjrft:intruders_subtree" data="leg"/>  and/or: every geom of these bodies and
+                                                         their descendants ("world": the model's)
+      <text name="mjrft:intruders_match" data="*foot*"/> every geom whose name matches a glob
+      <text name="mjrft:intruders_collision" data="world"/>
+                                                         every collision geom (contype or
+                                                         conaffinity nonzero) of these subtrees
     </custom>
 
 Imports mujoco only to read the model; no state.
@@ -47,6 +53,7 @@ Imports mujoco only to read the model; no state.
 from __future__ import annotations
 
 import dataclasses
+import fnmatch
 import math
 import warnings
 from dataclasses import dataclass
@@ -69,7 +76,15 @@ from mjrft.field.lowspeed import DEFAULT_REACH, MODES, LowSpeed
 
 PREFIX = "mjrft:"
 KEYS = {
-    "text": ("material", "low_speed", "surface_hfield", "model"),
+    "text": (
+        "material",
+        "low_speed",
+        "surface_hfield",
+        "model",
+        "intruders_subtree",
+        "intruders_match",
+        "intruders_collision",
+    ),
     "numeric": (
         "zeta",
         "coefficients",
@@ -296,6 +311,7 @@ def scene_from_model(
     repose: float | None = None,
     deform_every: int | None = None,
     dynamic: float | tuple[float, float] | None = None,
+    intruders: dict[str, str | list[str]] | None = None,
 ) -> Scene:
     """Read and validate the scene; the keyword arguments override the MJCF's.
 
@@ -309,6 +325,10 @@ def scene_from_model(
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
     ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick", "free" or "off") and
     stick_reach: the low-speed treatment (``mjrft.field.lowspeed``).
+
+    intruders: the geoms that feel the medium, instead of the MJCF's: a dict whose keys are
+    among INTRUDER_FORMS (geoms, bodies, subtree, match, collision), each a list of names or
+    one string of names separated by spaces; its geoms are the union of the selections.
     """
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")
@@ -347,14 +367,10 @@ def scene_from_model(
     free_surface = _deforming(model, custom, free_surface, region, material,
                               (deform_cell, repose, deform_every))  # fmt: skip
     default_tri, default_tol = _default_resolution(model, custom)
-    if "intruders" not in custom:
-        raise SceneError(
-            f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
-            "<element objtype='geom' objname='...' prm='0'/> entries to <custom>"
-        )
+    tagged = _tagged(model, custom, intruders)
     cap = _numeric_field(model, custom, "max_triangles", (1,), "one integer >= 12")
     cap = geometry.MAX_TRIANGLES if cap is None else int(cap[0])
-    intruders = _intruders(model, custom["intruders"][1], int(default_tri), default_tol, cap)
+    intruders = _intruders(model, tagged, int(default_tri), default_tol, cap)
     _warn_if_suspicious(model, intruders)
     if n_triangles is not None or tolerance is not None:
         intruders = tuple(
@@ -600,9 +616,121 @@ def _low_speed(model, custom, mode: str | None, reach: float | None) -> LowSpeed
         raise SceneError(str(exc)) from None
 
 
-def _intruders(
-    model: mujoco.MjModel, t: int, default_tri: int, default_tol: float | None, cap: int
-) -> tuple[Intruder, ...]:
+#: The ways of selecting intruders: by geom or body name (the ``mjrft:intruders`` tuple), and by
+#: ``<text name="mjrft:intruders_FORM">`` for the rest; the keys of SceneOptions.intruders.
+INTRUDER_FORMS = ("geoms", "bodies", "subtree", "match", "collision")
+TEXT_FORMS = ("subtree", "match", "collision")
+
+
+def _tagged(model: mujoco.MjModel, custom: dict, given: dict | None) -> dict[int, float]:
+    """{geom: prm} of the intruders: those of given (SceneOptions.intruders) if any, else the
+    MJCF's tuple and texts; a geom selected by several forms is counted once (the tuple's prm
+    kept)."""
+    if given is not None:
+        if not isinstance(given, dict) or not given:
+            raise SceneError(
+                f"intruders={given!r}: expected a non-empty dict with keys among "
+                f"{', '.join(INTRUDER_FORMS)}, e.g. {{'match': '*foot*'}}"
+            )
+        unknown = sorted(set(given) - set(INTRUDER_FORMS))
+        if unknown:
+            raise SceneError(
+                f"intruders: unknown key(s) {', '.join(map(repr, unknown))}; valid: "
+                f"{', '.join(INTRUDER_FORMS)}"
+            )
+        tagged: dict[int, float] = {}
+        for form, value in given.items():
+            words = value.split() if isinstance(value, str) else [str(v) for v in value]
+            if not words:
+                raise SceneError(f"intruders[{form!r}] is empty: give at least one name")
+            for g in _select(model, form, words, f"intruders[{form!r}]"):
+                tagged.setdefault(g, 0.0)
+        return tagged
+    texts = [f for f in TEXT_FORMS if f"intruders_{f}" in custom]
+    if "intruders" not in custom and not texts:
+        raise SceneError(
+            f"no intruding geoms: add <tuple name='{PREFIX}intruders'> with "
+            "<element objtype='geom' objname='...' prm='0'/> entries, or "
+            f"<text name='{PREFIX}intruders_match' data='*foot*'/> (or intruders_subtree, "
+            "intruders_collision), to <custom>; or pass intruders= (docs/mjcf.md)"
+        )
+    tagged = _tuple_tags(model, custom["intruders"][1]) if "intruders" in custom else {}
+    for form in texts:
+        where = f"<text name='{PREFIX}intruders_{form}'>"
+        words = _text(model, custom[f"intruders_{form}"][1]).split()
+        if not words:
+            raise SceneError(f"{where} is empty: give at least one name")
+        for g in _select(model, form, words, where):
+            tagged.setdefault(g, 0.0)
+    return tagged
+
+
+def _listing(names: list[str], limit: int = 40) -> str:
+    shown = ", ".join(names[:limit])
+    return shown + (f", ... ({len(names) - limit} more)" if len(names) > limit else "") or "none"
+
+
+def _select(model: mujoco.MjModel, form: str, words: list[str], where: str) -> list[int]:
+    """The geoms one selection form picks by these names or patterns; a word that picks
+    nothing is refused, naming it and what exists."""
+    names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in range(model.ngeom)
+    ]
+    geom_names = [n for n in names if n]
+    body_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in range(model.nbody)]
+    out: list[int] = []
+    for w in words:
+        if form == "match":
+            picked = [g for g, n in enumerate(names) if n and fnmatch.fnmatchcase(n, w)]
+            if not picked:
+                raise SceneError(
+                    f"{where}: pattern '{w}' matches no geom name; geoms: {_listing(geom_names)}"
+                )
+        elif form == "geoms":
+            g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, w)
+            if g < 0:
+                raise SceneError(f"{where}: no geom named '{w}'; geoms: {_listing(geom_names)}")
+            picked = [g]
+        else:
+            b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, w)
+            if b < 0:
+                raise SceneError(f"{where}: no body named '{w}'; bodies: {_listing(body_names)}")
+            if form == "bodies":
+                picked = [g for g in range(model.ngeom) if model.geom_bodyid[g] == b]
+            else:  # subtree, collision: the body's and its descendants', never the world's own
+                inside = _subtree(model, b)
+                picked = [
+                    g
+                    for g in range(model.ngeom)
+                    if model.geom_bodyid[g] != 0 and inside[model.geom_bodyid[g]]
+                ]
+                if form == "collision":
+                    picked = [
+                        g for g in picked if model.geom_contype[g] or model.geom_conaffinity[g]
+                    ]
+            if not picked:
+                what = {
+                    "bodies": "has no geoms",
+                    "subtree": "has no geoms in its subtree",
+                    "collision": "has no collision geom (contype or conaffinity nonzero) in its "
+                    "subtree",
+                }[form]
+                raise SceneError(f"{where}: body '{w}' {what}")
+        out.extend(picked)
+    return out
+
+
+def _subtree(model: mujoco.MjModel, root: int) -> list[bool]:
+    """Per body: True if it is root or one of its descendants (parents precede children)."""
+    inside = [False] * model.nbody
+    inside[root] = True
+    for b in range(1, model.nbody):
+        inside[b] = inside[b] or inside[int(model.body_parentid[b])]
+    return inside
+
+
+def _tuple_tags(model: mujoco.MjModel, t: int) -> dict[int, float]:
+    """{geom: prm} of the mjrft:intruders tuple; a geom listed twice is refused."""
     adr, size = model.tuple_adr[t], model.tuple_size[t]
     tagged: dict[int, float] = {}
     entry: dict[int, int] = {}  # geom -> the element that tagged it
@@ -638,6 +766,16 @@ def _intruders(
             entry[g] = k - adr
     if not tagged:
         raise SceneError(f"<tuple name='{PREFIX}intruders'> is empty: tag at least one geom")
+    return tagged
+
+
+def _intruders(
+    model: mujoco.MjModel,
+    tagged: dict[int, float],
+    default_tri: int,
+    default_tol: float | None,
+    cap: int,
+) -> tuple[Intruder, ...]:
     out = []
     for g, prm in sorted(tagged.items()):
         name = _name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
