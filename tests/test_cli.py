@@ -65,3 +65,63 @@ def test_one_dynamic_value_is_rho_c_and_the_demo_options_are_scene_options():
     assert cli.scene_options(args).dynamic == 1500.0
     demo = cli.build_parser().parse_args(["demo", "--triangles", "500"])
     assert cli.scene_options(demo).given() == {"material": "glass_beads", "n_triangles": 500}
+
+
+def _subcommands() -> list[str]:
+    sub = next(
+        a for a in cli.build_parser()._actions if isinstance(a, cli.argparse._SubParsersAction)
+    )
+    return list(sub.choices)
+
+
+#: Modules that `mjrft --help` and a subcommand's --help must not import (each subcommand
+#: imports what it needs when it runs).
+HEAVY = ("mujoco", "matplotlib", "rerun", "dm_control", "mjrft.sweep", "mjrft.field")
+
+
+@pytest.mark.parametrize("command", [[], *([c] for c in _subcommands())], ids=" ".join)
+def test_help_imports_no_heavy_module(command):
+    """`python -m mjrft.app.cli [SUBCOMMAND] --help`, in a fresh process, prints its help and
+    leaves mujoco, matplotlib, rerun, dm_control and the sweep machinery unimported."""
+    child = (
+        "import runpy, sys\n"
+        f"sys.argv = ['mjrft', *{command!r}, '--help']\n"
+        "try:\n    runpy.run_module('mjrft.app.cli', run_name='__main__')\n"
+        "except SystemExit as exc:\n    code = exc.code\n"
+        f"print(code, [m for m in {HEAVY!r} if m in sys.modules], file=sys.stderr)"
+    )
+    done = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True)
+    assert done.stderr.strip().splitlines()[-1] == "0 []", done.stderr
+    assert done.stdout.startswith(f"usage: {' '.join(['mjrft', *command])} ")
+
+
+def test_subcommand_typos_suggest_the_closest(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["rnu"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'rnu'" in (err := capsys.readouterr().err)
+    assert "did you mean 'run'?" in err
+    with pytest.raises(SystemExit):
+        cli.main(["run", "sphere_drop", "--duration", "1", "--out", "x", "--integrator", "rk5"])
+    assert "did you mean 'rk4'?" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["xyzzy"])
+    assert "did you mean" not in capsys.readouterr().err
+
+
+def test_model_name_typos_suggest_the_shipped_model(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli.main(["run", "hexapod_snad", "--duration", "1", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and "no shipped model of that name" in err
+    assert "did you mean 'hexapod_sand'?" in err
+    assert not out.exists()
+    with pytest.raises(ValueError, match="no shipped model") as exc:
+        simulate.resolve_model("qwertyuiop")
+    assert "did you mean" not in str(exc.value)  # nothing close: no suggestion
+
+
+def test_low_speed_choices_are_the_fields_modes():
+    from mjrft.field.lowspeed import MODES
+
+    assert cli.LOW_SPEED_MODES == MODES

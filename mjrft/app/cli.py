@@ -1,23 +1,25 @@
 """Command-line interface: ``mjrft demo``, ``mjrft run``, ``mjrft sweep``, ``mjrft view``,
-``mjrft view-recording``. Nothing below the app layer imports it."""
+``mjrft view-recording``. Nothing below the app layer imports it.
+
+Building the parser imports no mujoco, matplotlib, rerun, dm_control or ``mjrft.sweep``: each
+subcommand imports what it needs when it runs, so ``mjrft --help`` answers at once."""
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import signal
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from mjrft.app.recording_defaults import (
     DEFAULT_CONNECT_URL,
+    DEFAULT_FORCE_SCALE,
     DEFAULT_MAX_ARROWS,
     DEFAULT_STRESS_MAX_PA,
 )
-from mjrft.field.signals import HeldSignals
 
 DEFAULT_DEMO_DIR = "mjrft-demo"
 
@@ -30,6 +32,8 @@ DEMO_RRD = "demo.rrd"
 
 
 def _demo(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from mjrft.app import demos, report
     from mjrft.core.material import Material
 
@@ -219,6 +223,7 @@ def _on_sigterm(signum, frame) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from mjrft.app import metadata, simulate
+    from mjrft.field.signals import HeldSignals
 
     xml = simulate.resolve_model(args.model)
     out = _check_outputs(args)
@@ -436,12 +441,31 @@ def _nonnegative_float(text: str) -> float:
     return v
 
 
+#: ``mjrft.field.lowspeed.MODES``, here so that building the parser does not import mujoco
+#: (``mjrft.field`` does).
+LOW_SPEED_MODES = ("stick", "free", "off")
+
+
+class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose "invalid choice" errors (a subcommand, --integrator, ...) suggest
+    the closest valid choice."""
+
+    def _check_value(self, action, value):
+        try:
+            super()._check_value(action, value)
+        except argparse.ArgumentError as exc:
+            close = difflib.get_close_matches(str(value), [str(c) for c in action.choices], n=1)
+            if not close:
+                raise
+            raise argparse.ArgumentError(
+                action, f"{exc.message}; did you mean {close[0]!r}?"
+            ) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     from mjrft import __version__
 
-    p = argparse.ArgumentParser(
-        prog="mjrft", description="Granular Resistive Force Theory (3D RFT) for MuJoCo."
-    )
+    p = _Parser(prog="mjrft", description="Granular Resistive Force Theory (3D RFT) for MuJoCo.")
     p.add_argument("--version", action="version", version=f"mjrft {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     _add_demo(sub)
@@ -731,8 +755,6 @@ def _add_view(sub) -> None:
 
 def _add_view_model(sub) -> None:
     """The ``mjrft view`` subcommand: MuJoCo's interactive viewer with the field acting."""
-    from mjrft.app.mujoco_viewer import DEFAULT_FORCE_SCALE
-
     v = sub.add_parser(
         "view",
         help="open MODEL in MuJoCo's interactive viewer with the granular field acting",
@@ -821,8 +843,6 @@ def _scene(args: argparse.Namespace, xml):
 
 def _add_scene_options(r) -> None:
     """Options of ``mjrft run`` and ``mjrft view`` that override the model and its scene."""
-    from mjrft.field.lowspeed import MODES
-
     r.add_argument(
         "--timestep",
         type=_positive_float,
@@ -877,7 +897,7 @@ def _add_scene_options(r) -> None:
     )
     r.add_argument(
         "--low-speed",
-        choices=list(MODES),
+        choices=list(LOW_SPEED_MODES),
         default=None,
         help="low-speed treatment (docs/stability.md): stick holds free bodies and bodies in "
         "mechanisms at rest like static friction, free only free bodies, off is the pure model "

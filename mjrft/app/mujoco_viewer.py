@@ -17,6 +17,7 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from mjrft.app.recording_defaults import DEFAULT_FORCE_SCALE
 from mjrft.app.view import has_display
 from mjrft.field.granular_field import GranularField
 
@@ -25,9 +26,6 @@ from mjrft.field.granular_field import GranularField
 BODY_ARROW_RGBA = np.array([1.0, 0.45, 0.0, 1.0], dtype=np.float32)
 #: Colour of the per-triangle RFT force arrows (RGBA).
 TRIANGLE_ARROW_RGBA = np.array([0.1, 0.6, 1.0, 0.8], dtype=np.float32)
-#: Default arrow length per newton [m/N] of the per-body arrows: 5 cm for 1 N, the weight of
-#: the shipped rigs' intruders is of that order.
-DEFAULT_FORCE_SCALE = 0.05
 #: Arrow shaft width as a fraction of its length, with bounds [m] so that short arrows stay
 #: visible and long ones do not hide the body.
 ARROW_WIDTH_FRACTION = 0.04

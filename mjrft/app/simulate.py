@@ -5,6 +5,7 @@ Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import time as _time
@@ -47,8 +48,12 @@ def resolve_model(name: str | os.PathLike) -> Path:
     shipped = models_dir() / f"{stem}.xml"
     if path.parent == Path(".") and shipped.exists():
         return shipped
-    names = ", ".join(sorted(p.stem for p in models_dir().glob("*.xml")))
-    raise ValueError(f"no MJCF file {str(name)!r} and no shipped model of that name ({names})")
+    names = sorted(p.stem for p in models_dir().glob("*.xml"))
+    close = difflib.get_close_matches(stem, names, n=1) if path.parent == Path(".") else []
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    raise ValueError(
+        f"no MJCF file {str(name)!r} and no shipped model of that name ({', '.join(names)}){hint}"
+    )
 
 
 def load_model(
