@@ -190,7 +190,9 @@ def test_bad_dynamic_settings_are_named(data, message):
 
 def test_a_density_in_the_wrong_units_warns_and_callables_are_refused():
     with pytest.warns(MaterialWarning, match="denser than any granular medium"):
-        Material.preset("glass_beads").with_dynamic(1.5e6)
+        Material.preset("glass_beads").with_dynamic(2.0e4)  # the grains' density, say
+    with pytest.raises(ValueError, match="rho_c = 1.5e\\+06 kg/m\\^3: expected 0 to 25000"):
+        Material.preset("glass_beads").with_dynamic(1.5e6)  # in g/m^3: no medium is this dense
     glass = Material.preset("glass_beads")
     python = Material.from_callables(
         lambda b, g: glass.alpha_generic(b, g)[0],

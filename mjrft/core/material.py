@@ -42,6 +42,16 @@ AGARWAL_MU_SURF = 10.0
 #: Bulk densities of dry granular media are 1,000-2,000 kg/m^3 (glass beads ~1,500, packing
 #: fraction 0.6 of 2,500); a dynamic term's rho_c above this is almost surely in other units.
 RHO_C_MAX = 5000.0
+#: No medium is denser than its grains, and no solid is denser than osmium (22,590 kg/m^3): a
+#: dynamic term's rho_c above this is refused.
+RHO_C_LIMIT = 25000.0
+#: The dynamic term's lambda is the share of the grains' momentum flux the body feels, of order
+#: 1 (the public implementation sets 1); above this the body would feel many times the momentum
+#: it gives the grains, and it is refused.
+LAMBDA_MAX = 10.0
+#: An intruder-medium friction coefficient above this is refused: real surfaces on grains have
+#: mu below 1, and the default 10 is chosen large enough never to cap the tangential part.
+MU_SURF_MAX = 100.0
 
 #: The (m, n) harmonics of Li 2013's first-order Fourier fit, in a fixed order.
 HARMONICS: tuple[tuple[int, int], ...] = ((-1, 0), (0, 0), (1, 0), (-1, 1), (0, 1), (1, 1))
@@ -688,6 +698,18 @@ class Material:
                     + (" in kg/m^3 (bulk density)" if label == "rho_c" else "")
                 )
         rho_c, lam = float(rho_c), float(lam)
+        if rho_c > RHO_C_LIMIT:
+            raise ValueError(
+                f"dynamic RFT rho_c = {rho_c:g} kg/m^3: expected 0 to {RHO_C_LIMIT:g} kg/m^3, the "
+                "medium's bulk density (no medium is denser than its grains, no solid denser than "
+                "osmium's 22,590; dry sands and glass beads: 1,000-2,000)"
+            )
+        if lam > LAMBDA_MAX:
+            raise ValueError(
+                f"dynamic RFT lambda = {lam:g}: expected 0 to {LAMBDA_MAX:g}, the share of the "
+                "grains' momentum flux the body feels (of order 1; the public implementation "
+                "sets 1)"
+            )
         if rho_c * lam > 0.0 and not self.compiled:
             raise ValueError(
                 f"material {self.name!r} is given by callables: the dynamic RFT term runs in the "
@@ -706,8 +728,12 @@ class Material:
         """Agarwal et al.'s 3D-RFT (``mjrft.core.agarwal``) with scale xi_n [N/m^3] (from bulk
         density and internal friction: ``agarwal.xi_n``) and intruder-medium friction."""
         xi = _check_zeta(xi_n)
-        if not (math.isfinite(mu_surf) and mu_surf >= 0.0):
-            raise ValueError(f"mu_surf = {mu_surf!r}: expected a finite friction coefficient >= 0")
+        if not (math.isfinite(mu_surf) and 0.0 <= mu_surf <= MU_SURF_MAX):
+            raise ValueError(
+                f"mu_surf = {mu_surf!r}: expected a friction coefficient from 0 to "
+                f"{MU_SURF_MAX:g} (real surfaces on grains: below 1; the default "
+                f"{AGARWAL_MU_SURF:g} is chosen never to cap the tangential part)"
+            )
         return cls(name or f"agarwal3d (xi_n={xi / N_PER_CM3:g} N/cm^3)",
                    xi * AGARWAL_PLATE_DOWN, source=source or "Agarwal, Goldman & Kamrin 2023",
                    agarwal=agarwal.parameters(xi, mu_surf))  # fmt: skip

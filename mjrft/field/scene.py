@@ -10,14 +10,17 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <text name="mjrft:model" data="treers2021"/>       force model: treers2021 (default) or
                                                          agarwal3d (mjrft.core.agarwal; its scale
                                                          matched to the material's)
-      <numeric name="mjrft:mu_surf" data="10"/>          agarwal3d's intruder-medium friction
+      <numeric name="mjrft:mu_surf" data="10"/>          agarwal3d's intruder-medium friction,
+                                                         0 to 100 (a warning without agarwal3d)
       <numeric name="mjrft:dynamic" data="1500 1"/>      dynamic RFT inertial term (off by
                                                          default): bulk density rho_c [kg/m^3]
-                                                         and optional lambda (default 1)
+                                                         and optional lambda (default 1); rho_c
+                                                         to 25,000, lambda to 10
       <numeric name="mjrft:surface_z" data="0"/>         free-surface height [m] (default 0)
       <numeric name="mjrft:surface_slope" data="10 90"/> or a tilted plane through (0, 0,
                                                          surface_z): slope and downhill azimuth
-                                                         from +x [degrees]
+                                                         from +x [degrees], slope 0-60, azimuth
+                                                         -360..360
       <text name="mjrft:surface_hfield" data="dune"/>    or the surface of an <hfield> asset, placed
                                                          by the geom that uses it
       <numeric name="mjrft:region" data="xmin ymin zmin xmax ymax zmax"/>
@@ -66,6 +69,7 @@ from mjrft.core import surface as surface_mod
 from mjrft.core.material import (
     AGARWAL_MU_SURF,
     MODELS,
+    MU_SURF_MAX,
     PRESETS,
     FourierCoefficients,
     Material,
@@ -366,6 +370,7 @@ def scene_from_model(
     free_surface = _surface(model, custom, surface_z, region)
     free_surface = _deforming(model, custom, free_surface, region, material,
                               (deform_cell, repose, deform_every))  # fmt: skip
+    _warn_if_steep(model, custom, material, repose)
     default_tri, default_tol = _default_resolution(model, custom)
     tagged = _tagged(model, custom, intruders)
     cap = _numeric_field(model, custom, "max_triangles", (1,), "one integer >= 12")
@@ -394,6 +399,8 @@ def scene_from_model(
 #: Steepest tilted-plane surface accepted [degrees]: dry granular media do not stand steeper
 #: than their angle of repose, 20-40 degrees for sands and glass beads (docs/field.md).
 MAX_SLOPE_DEG = 60.0
+#: Largest |azimuth| of mjrft:surface_slope accepted [degrees]: one turn each way.
+MAX_AZIMUTH_DEG = 360.0
 DEG = math.pi / 180.0  # rad per degree: the MJCF gives angles in degrees
 
 
@@ -406,12 +413,19 @@ def _surface(model, custom, surface_z: float, region) -> Surface:
         )
     if "surface_slope" in custom:
         where = f"<numeric name='{PREFIX}surface_slope'>"
-        valid = "2 numbers: slope [deg] and downhill azimuth from +x [deg]"
+        valid = "2 numbers, finite angles in degrees: slope and downhill azimuth from +x"
         slope, azimuth = _numeric_field(model, custom, "surface_slope", (2,), valid)
         if not 0.0 <= slope <= MAX_SLOPE_DEG:
             raise SceneError(
                 f"{where} slope = {slope} degrees; expected 0 to {MAX_SLOPE_DEG:g} (a granular "
                 "slope stands at most at its angle of repose, 20-40 degrees)"
+            )
+        if not abs(azimuth) <= MAX_AZIMUTH_DEG:
+            raise SceneError(
+                f"{where} azimuth = {azimuth:g} degrees; expected an angle in degrees from "
+                f"-{MAX_AZIMUTH_DEG:g} to {MAX_AZIMUTH_DEG:g} (one turn each way gives every "
+                "direction; a larger angle is no direction anyone means, and a huge one reduces "
+                "to nothing meaningful in floating point)"
             )
         return surface_mod.plane(surface_z, slope * DEG, azimuth * DEG)
     if "surface_hfield" in custom:
@@ -422,6 +436,27 @@ def _surface(model, custom, surface_z: float, region) -> Surface:
             )
         return _hfield_surface(model, _text(model, custom["surface_hfield"][1]), region)
     return surface_mod.flat(surface_z)
+
+
+def _warn_if_steep(model, custom, material: Material, repose: float | None) -> None:
+    """SceneWarning for a mjrft:surface_slope steeper than the medium's angle of repose (the
+    repose override, else mjrft:repose, else ``soil.repose_of`` the material): such sand would
+    flow, and the static plane does not."""
+    if "surface_slope" not in custom:
+        return
+    slope = float(_numeric(model, custom["surface_slope"][1])[0])
+    if repose is None:
+        value = _numeric(model, custom["repose"][1]) if "repose" in custom else None
+        name = material.name.removesuffix(" (agarwal3d)")
+        repose = soil.repose_of(name) if value is None or value.size != 1 else float(value[0])
+    if slope > repose:
+        warnings.warn(
+            f"<numeric name='{PREFIX}surface_slope'> slope = {slope:g} degrees is steeper than "
+            f"the medium's angle of repose, {repose:g} degrees ({material.name}): such a slope "
+            "of sand would flow, while the surface here stays a static plane",
+            SceneWarning,
+            stacklevel=4,
+        )
 
 
 def _hfield_surface(model, name: str, region) -> Surface:
@@ -475,13 +510,23 @@ def _hfield_surface(model, name: str, region) -> Surface:
 def _force_model(model: mujoco.MjModel, custom: dict, material: Material) -> Material:
     """The material under the force model mjrft:model names (``material.MODELS``; default
     treers2021), with mjrft:mu_surf for agarwal3d."""
-    if "model" not in custom:
-        return material
-    name = _text(model, custom["model"][1])
+    name = _text(model, custom["model"][1]) if "model" in custom else None
     where = f"<text name='{PREFIX}model'> = {name!r}"
-    if name not in MODELS:
+    if name is not None and name not in MODELS:
         raise SceneError(f"{where}: unknown force model; valid: {', '.join(MODELS)}")
-    mu = _numeric_field(model, custom, "mu_surf", (1,), "one friction coefficient >= 0")
+    if name != "agarwal3d" and "mu_surf" in custom:
+        warnings.warn(
+            f"<numeric name='{PREFIX}mu_surf'> does nothing: it is the agarwal3d model's "
+            f"intruder-medium friction, and the model is {name or 'treers2021 (the default)'}; "
+            f"add <text name='{PREFIX}model' data='agarwal3d'/> or remove it",
+            SceneWarning,
+            stacklevel=4,
+        )
+    if name is None:
+        return material
+    mu = _numeric_field(
+        model, custom, "mu_surf", (1,), f"one friction coefficient from 0 to {MU_SURF_MAX:g}"
+    )
     try:
         return material.with_model(name, mu_surf=AGARWAL_MU_SURF if mu is None else float(mu[0]))
     except ValueError as exc:
@@ -520,6 +565,7 @@ def _deforming(model, custom, initial: Surface, region, material, options) -> Su
         value = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
         cell = None if value is None else float(value[0])
     if cell is None or cell == 0.0:
+        _warn_if_unused(model, custom, cell, repose, every)
         return initial
     if not (math.isfinite(cell) and cell > 0.0):
         raise SceneError(f"{where} = {cell!r}: expected a cell size > 0 [m] (e.g. 0.002)")
@@ -552,6 +598,26 @@ def _deforming(model, custom, initial: Surface, region, material, options) -> Su
             ">= 1 between updates of the ground (1: every step)"
         )
     return soil.grid_over(initial, region, cell, repose, int(every))
+
+
+def _warn_if_unused(model, custom, cell, repose, every) -> None:
+    """SceneWarning for each setting of the deforming ground given without one (cell: the
+    deform_cell override, 0 where it turns off the MJCF's ground; the MJCF's repose and
+    deform_every then go unwarned, since the override switches them off on purpose)."""
+    for key, override in (("repose", repose), ("deform_every", every)):
+        if override is not None:
+            given = f"{key} = {override!r}"
+        elif key in custom and cell is None:
+            given = f"<numeric name='{PREFIX}{key}'>"
+        else:
+            continue
+        warnings.warn(
+            f"{given} does nothing: there is no deforming ground (it is a setting of the "
+            f"ground that {PREFIX}deform_cell or deform_cell turns on); remove it or give a "
+            "cell",
+            SceneWarning,
+            stacklevel=5,
+        )
 
 
 def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:
