@@ -79,18 +79,5 @@ MJRFT_API long long mjrft_state_size(const mjModel* m, mjData* d, int instance, 
   return in ? in->ArraySize(name) : -1;
 }
 
-// The address of table `name` of d's instance, or null.
-MJRFT_API const void* mjrft_table(const mjModel* m, mjData* d, int instance, const char* name) {
-  std::string error;
-  mjrft::Instance* in = mjrft::Instance::Of(m, d, instance, &error);
-  if (!in) return nullptr;
-  const mjrft::Tables& t = in->tables();
-#define MJRFT_X(type, field, size, doc) \
-  if (std::strcmp(name, #field) == 0) return static_cast<const void*>(t.field);
-  MJRFT_TABLE_ARRAYS(MJRFT_X)
-#undef MJRFT_X
-  return nullptr;
-}
-
 // The MuJoCo version the library was compiled against (mjVERSION_HEADER).
 MJRFT_API int mjrft_mujoco_version() { return mjVERSION_HEADER; }

@@ -79,7 +79,7 @@ bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error) {
 
 }  // namespace
 
-bool Instance::ReadSizes(const mjModel* m, Sizes* n, std::string* error) {
+bool Instance::ReadHead(const mjModel* m, Tables* t, std::string* error) {
   int size = 0;
   const f64* format = Numeric(m, "format", &size);
   if (!format) {
@@ -92,40 +92,28 @@ bool Instance::ReadSizes(const mjModel* m, Sizes* n, std::string* error) {
              std::to_string(kTableFormat) + ": reload the model with this version of mjrft";
     return false;
   }
-  const f64* sizes = Numeric(m, "sizes", &size);
-  const f64* scalars = nullptr;
-  int nscalar = 0;
-  scalars = Numeric(m, "scalars", &nscalar);
+  int nsize = 0, nscalar = 0;
+  const f64* sizes = Numeric(m, "sizes", &nsize);
+  const f64* scalars = Numeric(m, "scalars", &nscalar);
   if (!sizes || !scalars) {
     *error = Missing(sizes ? "scalars" : "sizes");
     return false;
   }
-  Tables t{};
   int i = 0;
-#define MJRFT_X(name) t.name = i < size ? static_cast<i64>(sizes[i]) : -1, i++;
+#define MJRFT_X(name) t->name = i < nsize ? static_cast<i64>(sizes[i]) : -1, i++;
   MJRFT_TABLE_SIZES(MJRFT_X)
 #undef MJRFT_X
-  if (i != size) {
-    *error = std::string(kPluginName) + ": the sizes table has " + std::to_string(size) +
-             " entries, expected " + std::to_string(i);
-    return false;
-  }
-  bool soil = false;
   int j = 0;
-#define MJRFT_X(type, name, doc)                                           \
-  if (std::string(#name) == "soil" && j < nscalar) soil = scalars[j] != 0; \
-  j++;
+#define MJRFT_X(type, name, doc) t->name = j < nscalar ? static_cast<type>(scalars[j]) : 0, j++;
   MJRFT_TABLE_SCALARS(MJRFT_X)
 #undef MJRFT_X
-  *n = {m->nbody,
-        m->nv,
-        m->nu,
-        t.nelem,
-        t.ntgeom,
-        t.ntbody,
-        t.nsoil,
-        soil ? t.surface_nrow : 1,
-        soil ? t.surface_ncol : 1};
+  if (i != nsize || j != nscalar) {
+    bool bad_sizes = i != nsize;
+    *error = std::string(kPluginName) + ": the " + (bad_sizes ? "sizes" : "scalars") +
+             " table has " + std::to_string(bad_sizes ? nsize : nscalar) + " entries, expected " +
+             std::to_string(bad_sizes ? i : j);
+    return false;
+  }
   return true;
 }
 
@@ -142,27 +130,20 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
     return nullptr;
   }
   out->instance_ = instance;
-  Sizes& n = out->sizes_;
-  if (!ReadSizes(m, &n, error)) return nullptr;
   Tables& t = out->tables_;
 
-  // 1. sizes and scalars
-  int size = 0;
-  const f64* sizes = Numeric(m, "sizes", &size);
-  int i = 0;
-#define MJRFT_X(name) t.name = static_cast<i64>(sizes[i++]);
-  MJRFT_TABLE_SIZES(MJRFT_X)
-#undef MJRFT_X
-  const f64* scalars = Numeric(m, "scalars", &size);
-  i = 0;
-#define MJRFT_X(type, name, doc) t.name = static_cast<type>(scalars[i++]);
-  MJRFT_TABLE_SCALARS(MJRFT_X)
-#undef MJRFT_X
-  if (i != size) {
-    *error = std::string(kPluginName) + ": the scalars table has " + std::to_string(size) +
-             " entries, expected " + std::to_string(i);
-    return nullptr;
-  }
+  // 1. sizes and scalars, and the state's sizes from them
+  if (!ReadHead(m, &t, error)) return nullptr;
+  Sizes& n = out->sizes_;
+  n = {m->nbody,
+       m->nv,
+       m->nu,
+       t.nelem,
+       t.ntgeom,
+       t.ntbody,
+       t.nsoil,
+       t.soil ? t.surface_nrow : 1,
+       t.soil ? t.surface_ncol : 1};
 
   // 2. arrays: f64 tables are read in place from the model, i64 tables converted once
   const i64 nelem = t.nelem, ntgeom = t.ntgeom, ntbody = t.ntbody, ncoef = t.ncoef;

@@ -66,8 +66,9 @@ class Instance {
 
   // Number of mjtNum of the persistent state of an instance of these sizes.
   static i64 StateSize(const Sizes& n);
-  // Sizes of an instance of m (from its tables); false with the reason in error.
-  static bool ReadSizes(const mjModel* m, Sizes* n, std::string* error);
+  // The tables' format, sizes and scalars of m into t (arrays untouched); false with the
+  // reason in error.
+  static bool ReadHead(const mjModel* m, Tables* t, std::string* error);
 
  private:
   int instance_ = 0;
