@@ -42,13 +42,7 @@ MJRFT_API const char* mjrft_layout() {
 }
 
 // The index of m's mjrft.granular instance, or -1.
-MJRFT_API int mjrft_instance(const mjModel* m) {
-  for (int i = 0; i < m->nplugin; i++) {
-    const mjpPlugin* p = mjp_getPluginAtSlot(m->plugin[i]);
-    if (p && std::strcmp(p->name, mjrft::kPluginName) == 0) return i;
-  }
-  return -1;
-}
+MJRFT_API int mjrft_instance(const mjModel* m) { return mjrft::GranularInstance(m); }
 
 // A pass of the engine on d in the given mode (forward.h); returns its status, or 1 if d has no
 // usable instance.

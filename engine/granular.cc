@@ -484,6 +484,14 @@ void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
 
 }  // namespace
 
+int GranularInstance(const mjModel* m) {
+  for (int i = 0; i < m->nplugin; i++) {
+    const mjpPlugin* p = mjp_getPluginAtSlot(m->plugin[i]);
+    if (p && std::strcmp(p->name, kPluginName) == 0) return i;
+  }
+  return -1;
+}
+
 void RegisterGranular() {
   // A second copy of the library in one process (another path to it) must not register the name
   // again: MuJoCo treats a second, different plugin of one name as a fatal error.

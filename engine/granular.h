@@ -81,6 +81,9 @@ class Instance {
   State work_state_{};      // pointers of the work arrays (persistent ones set by Bind)
 };
 
+// The index of m's mjrft.granular instance, or -1.
+int GranularInstance(const mjModel* m);
+
 // Registers mjrft.granular with MuJoCo (once per process).
 void RegisterGranular();
 

@@ -37,6 +37,7 @@ __all__ = [
     "SceneOptions",
     "__version__",
     "add_granular",
+    "add_sensors",
     "element_forces",
     "load_model",
 ]
@@ -47,7 +48,7 @@ def __getattr__(name: str) -> Any:
         from mjrft.field.granular_field import GranularField
 
         return GranularField
-    if name in ("load_model", "add_granular"):
+    if name in ("load_model", "add_granular", "add_sensors"):
         from mjrft.field import plugin
 
         return getattr(plugin, name)

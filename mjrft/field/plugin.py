@@ -29,6 +29,11 @@ from mjrft.field.scene import ENGINE_PREFIX, SceneError, SceneWarning, scene_fro
 
 PLUGIN = "mjrft.granular"
 PREFIX = ENGINE_PREFIX
+#: The sensor plugin: per intruder geom, the applied RFT wrench and the sinkage (add_sensors).
+SENSOR = "mjrft.sensor"
+#: The values of one mjrft.sensor reading, in order: force [N] and torque [N m] about the geom's
+#: centre, world frame, then the sinkage [m] (the surface's height above the geom's lowest point).
+READING = ("fx", "fy", "fz", "tx", "ty", "tz", "sinkage")
 
 
 def library():
@@ -101,10 +106,12 @@ def add_granular(
     for element in [*spec.numerics, *spec.plugins]:
         if element.name.startswith(PREFIX) or getattr(element, "plugin_name", "") == PLUGIN:
             spec.delete(element)
+    sensors = _our_sensors(spec)
     if model is None:
         model = spec.compile()
     _warn_if_passive_skipped(model)
     tables = setup(model, options).tables
+    _check_sensors(sensors, model, tables)
     for name, data in numerics(tables).items():
         spec.add_numeric(name=PREFIX + name, data=data.tolist(), size=max(1, len(data)))
     # MuJoCo sizes a plugin's state before the model's numeric fields hold data: the sizes that
@@ -112,6 +119,84 @@ def add_granular(
     config = {k: str(int(tables[k])) for k in ("ntbody", "ntgeom", "nsoil")}
     spec.activate_plugin(PLUGIN)
     spec.add_plugin(name="mjrft", plugin_name=PLUGIN, active=True).config = config
+
+
+def _sensor_plugin(spec: mujoco.MjSpec, sensor) -> str:
+    """The plugin name of a plugin sensor: its own, or its named instance's."""
+    if sensor.plugin.plugin_name:
+        return sensor.plugin.plugin_name
+    for p in spec.plugins:
+        if p.name and p.name == sensor.plugin.name:
+            return p.plugin_name
+    return ""
+
+
+def _our_sensors(spec: mujoco.MjSpec) -> list:
+    """The mjrft.sensor sensors of spec; SceneError naming one not on a geom."""
+    out = [
+        sensor
+        for sensor in spec.sensors
+        if sensor.type == mujoco.mjtSensor.mjSENS_PLUGIN and _sensor_plugin(spec, sensor) == SENSOR
+    ]
+    for sensor in out:
+        if sensor.objtype != mujoco.mjtObj.mjOBJ_GEOM:
+            raise SceneError(
+                f'{SENSOR} sensor {sensor.name or "(unnamed)"!r}: objtype must be "geom" '
+                "with objname an intruder geom"
+            )
+    return out
+
+
+def _check_sensors(sensors: list, model: mujoco.MjModel, tables: dict) -> None:
+    """Every one of sensors (mjrft.sensor) reads a geom the medium acts on (SceneError)."""
+    tagged = set(np.asarray(tables["tgeom_geomid"]).tolist())
+    for sensor in sensors:
+        geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, sensor.objname)
+        if geom not in tagged:
+            names = sorted(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
+                           for g in tagged)  # fmt: skip
+            raise SceneError(
+                f"{SENSOR} sensor {sensor.name or '(unnamed)'!r}: geom {sensor.objname!r} is not "
+                f"an intruder of the granular medium; the intruder geoms are {names} (tag it: "
+                'docs/mjcf.md, "Tagging a robot")'
+            )
+
+
+def add_sensors(
+    spec: mujoco.MjSpec, geoms: list[str] | None = None, options: SceneOptions | None = None
+) -> list[str]:
+    """Add one ``mjrft.sensor`` per geom to spec (in place), named ``rft:<geom>``; returns the
+    sensor names. Each reads 7 values (READING): the RFT force [N] and torque [N m] about the
+    geom's centre that the engine applied to the geom, world frame, then its sinkage [m].
+
+    geoms: names of intruder geoms; None: every named intruder geom of the scene (options: the
+    SceneOptions the model will be loaded with, which decide what the intruders are). Compile
+    spec with ``load_model(spec)`` afterwards. Raises SceneError naming a geom that is not an
+    intruder, or an unnamed intruder.
+    """
+    library()
+    if geoms is None:
+        model = spec.compile()
+        scene = scene_from_model(model, **(options or SceneOptions()).given())
+        unnamed = [i.geom for i in scene.intruders if not i.name]
+        if unnamed:
+            raise SceneError(
+                f"add_sensors: intruder geoms {unnamed} have no name; name them, or pass geoms"
+            )
+        geoms = [i.name for i in scene.intruders]
+    spec.activate_plugin(SENSOR)
+    names = []
+    for geom in geoms:
+        sensor = spec.add_sensor(
+            name=f"rft:{geom}",
+            type=mujoco.mjtSensor.mjSENS_PLUGIN,
+            objtype=mujoco.mjtObj.mjOBJ_GEOM,
+            objname=geom,
+        )
+        # an instance of its own (MuJoCo's compiler refuses an unnamed implicit one from MjSpec)
+        sensor.plugin = spec.add_plugin(plugin_name=SENSOR, active=True)
+        names.append(sensor.name)
+    return names
 
 
 def _warn_if_passive_skipped(model: mujoco.MjModel) -> None:
