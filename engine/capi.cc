@@ -9,6 +9,7 @@
 #include "api.h"
 #include "forward.h"
 #include "granular.h"
+#include "watch.h"
 
 namespace {
 
@@ -75,3 +76,9 @@ MJRFT_API long long mjrft_state_size(const mjModel* m, mjData* d, int instance, 
 
 // The MuJoCo version the library was compiled against (mjVERSION_HEADER).
 MJRFT_API int mjrft_mujoco_version() { return mjVERSION_HEADER; }
+
+// Sets the receiver of the engine's reports of geoms that sink without being intruders
+// (watch.h); null: MuJoCo's mju_warning.
+MJRFT_API void mjrft_set_report_handler(void (*handler)(const char* message)) {
+  mjrft::watch::SetHandler(handler);
+}

@@ -23,7 +23,8 @@
   X(surface_ncol) /* columns of surface_grid */                                   \
   X(ncoef)        /* length of coef (18 Treers, 19 with the dynamic term, ...) */ \
   X(nvert)        /* rows of elem_vert: nelem with a deforming ground, else 1 */  \
-  X(nsoil)        /* size of the soil block (1 without a deforming ground) */
+  X(nsoil)        /* size of the soil block (1 without a deforming ground) */     \
+  X(nwatch)       /* geoms checked for sinking without being intruders (watch.h) */
 
 // Scalars of the static tables: X(type, name, meaning).
 #define MJRFT_TABLE_SCALARS(X)                                        \
@@ -67,7 +68,8 @@
   X(f64, surface_grid, surface_nrow* surface_ncol, "grid heights [m], world frame")    \
   X(f64, elem_vert, nvert * 9, "triangle vertices [m], body frame (deforming ground)") \
   X(f64, elem_reach, nelem, "largest centroid-corner distance [m]")                    \
-  X(f64, elem_patch, nelem* kPatchSize, "corner offsets and normals, body frame")
+  X(f64, elem_patch, nelem* kPatchSize, "corner offsets and normals, body frame")      \
+  X(i64, watch_geomid, nwatch, "MuJoCo geom id of each geom checked for sinking")
 
 // The engine's state for one mjData: X(type, name, size, meaning); size is an expression in nbody,
 // nv, nu (mjModel), nelem, ng = ntgeom, nk = ntbody, nsoil (Tables), and soil_nrow, soil_ncol
@@ -119,7 +121,8 @@
   X(f64, soil_floor, soil_nrow* soil_ncol, "work: intruders' lowest point per vertex [m]")  \
   X(i64, soil_owner, soil_nrow* soil_ncol, "work: the tagged body over it, -1 none")        \
   X(i64, soil_queue, soil_nrow* soil_ncol, "work: the relaxation's queue of vertices")      \
-  X(f64, soil_box, (nk + 3) * 4, "work: vertex boxes of footprints and of the relaxation")
+  X(f64, soil_box, (nk + 3) * 4, "work: vertex boxes of footprints and of the relaxation")  \
+  X(i64, watch_told, nwatch, "1 once the geom's sinking was reported (watch.h)")
 
 #define MJRFT_STATE_ARRAYS(X) MJRFT_STATE_PERSISTENT(X) MJRFT_STATE_WORK(X)
 

@@ -20,6 +20,7 @@
 #endif
 
 #include "forward.h"
+#include "watch.h"
 
 namespace mjrft {
 namespace {
@@ -73,7 +74,7 @@ bool ConfigSizes(const mjModel* m, int instance, Sizes* n, std::string* error) {
       return false;
     }
   }
-  *n = {m->nbody, m->nv, m->nu, 0, v[1], v[0], v[2], 1, 1};
+  *n = {m->nbody, m->nv, m->nu, 0, v[1], v[0], v[2], 1, 1, 0};
   return true;
 }
 
@@ -143,14 +144,15 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
        t.ntbody,
        t.nsoil,
        t.soil ? t.surface_nrow : 1,
-       t.soil ? t.surface_ncol : 1};
+       t.soil ? t.surface_ncol : 1,
+       t.nwatch};
 
   // 2. arrays: f64 tables are read in place from the model, i64 tables converted once
   const i64 nelem = t.nelem, ntgeom = t.ntgeom, ntbody = t.ntbody, ncoef = t.ncoef;
   const i64 surface_nrow = t.surface_nrow, surface_ncol = t.surface_ncol, nvert = t.nvert;
-  const i64 nv = m->nv, nu = m->nu;
+  const i64 nv = m->nv, nu = m->nu, nwatch = t.nwatch;
   (void)nelem, (void)ntgeom, (void)ntbody, (void)ncoef, (void)surface_nrow, (void)surface_ncol;
-  (void)nvert, (void)nv, (void)nu;
+  (void)nvert, (void)nv, (void)nu, (void)nwatch;
   i64 nint = 0;
 #define MJRFT_X(type, name, count, doc) \
   if (std::is_same<type, i64>::value) nint += static_cast<i64>(count);
@@ -213,6 +215,14 @@ std::unique_ptr<Instance> Instance::Create(const mjModel* m, int instance, std::
       return nullptr;
     }
   }
+  for (i64 w = 0; w < t.nwatch; w++) {
+    if (t.watch_geomid[w] < 0 || t.watch_geomid[w] >= m->ngeom) {
+      *error = std::string(kPluginName) + ": watched geom " + std::to_string(w) + " has id " +
+               std::to_string(t.watch_geomid[w]) + ", the model has " + std::to_string(m->ngeom) +
+               " geoms: reload the model";
+      return nullptr;
+    }
+  }
   for (i64 k = 0; k < t.ntbody; k++) {
     if (t.tbody_bodyid[k] <= 0 || t.tbody_bodyid[k] >= m->nbody) {
       *error = std::string(kPluginName) + ": tagged body " + std::to_string(k) + " has id " +
@@ -253,8 +263,9 @@ i64 Instance::ArraySize(const char* name) const {
   const Sizes& n = sizes_;
   const i64 nbody = n.nbody, nv = n.nv, nu = n.nu, nelem = n.nelem, ng = n.ng, nk = n.nk;
   const i64 nsoil = n.nsoil, soil_nrow = n.soil_nrow, soil_ncol = n.soil_ncol;
+  const i64 nwatch = n.nwatch;
   (void)nbody, (void)nv, (void)nu, (void)nelem, (void)ng, (void)nk, (void)nsoil;
-  (void)soil_nrow, (void)soil_ncol;
+  (void)soil_nrow, (void)soil_ncol, (void)nwatch;
 #define MJRFT_X(type, field, size, doc) \
   if (std::strcmp(name, #field) == 0) return static_cast<i64>(size);
   MJRFT_STATE_ARRAYS(MJRFT_X)
@@ -342,6 +353,7 @@ i64 Instance::Run(const mjModel* m, mjData* d, int mode) {
   }
   i64 status = Forward(m, d, tables_, s, mode);
   for (int i = 0; i < 3; i++) seen_[i] = s.stats[i];
+  if (status == kOk && mode == kInstalled) watch::ReportSunk(m, d, tables_, s);
   return status;
 }
 

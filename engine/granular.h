@@ -27,7 +27,7 @@ constexpr int kTableFormat = 1;
 
 // The sizes that fix the State's layout.
 struct Sizes {
-  i64 nbody, nv, nu, nelem, ng, nk, nsoil, soil_nrow, soil_ncol;
+  i64 nbody, nv, nu, nelem, ng, nk, nsoil, soil_nrow, soil_ncol, nwatch;
 };
 
 // One plugin instance on one mjData.

@@ -35,6 +35,7 @@ __all__ = [
     "GranularField",
     "Material",
     "SceneOptions",
+    "SinkingWarning",
     "__version__",
     "add_granular",
     "add_sensors",
@@ -52,6 +53,10 @@ def __getattr__(name: str) -> Any:
         from mjrft.field import plugin
 
         return getattr(plugin, name)
+    if name == "SinkingWarning":
+        from mjrft.core.engine import SinkingWarning
+
+        return SinkingWarning
     if name == "SceneOptions":
         from mjrft.field.options import SceneOptions
 

@@ -32,7 +32,8 @@ def test_installed_command_runs():
 SCENE_ARGS = ["--material", "poppy_seeds_lp", "--triangles", "300", "--low-speed", "free",
               "--stick-reach", "3", "--deform-cell", "0.01", "--repose", "25",
               "--deform-every", "2", "--dynamic", "1500", "0.8",
-              "--intruders", "geoms=wheel", "--intruders", "match=whe*"]  # fmt: skip
+              "--intruders", "geoms=wheel", "--intruders", "match=whe*",
+              "--no-watch-sinking"]  # fmt: skip
 
 
 @pytest.mark.parametrize("command", ["run", "view"])
@@ -47,7 +48,7 @@ def test_every_scene_option_reaches_load_model_through_scene_options(command):
     assert options == SceneOptions(
         material="poppy_seeds_lp", n_triangles=300, low_speed="free", stick_reach=3.0,
         deform_cell=0.01, repose=25.0, deform_every=2, dynamic=(1500.0, 0.8),
-        intruders={"geoms": ["wheel"], "match": ["whe*"]},
+        intruders={"geoms": ["wheel"], "match": ["whe*"]}, watch_sinking=False,
     )  # fmt: skip
     _, _, fld = cli._scene(args, "wheel_rig")
     assert fld.material.name.startswith("poppy_seeds_lp") and fld.material.dynamic == 1200.0

@@ -809,7 +809,7 @@ SCENE_OPTIONS = {
     "material": "material", "n_triangles": "triangles", "tolerance": "tolerance",
     "low_speed": "low_speed", "stick_reach": "stick_reach", "deform_cell": "deform_cell",
     "repose": "repose", "deform_every": "deform_every", "dynamic": "dynamic",
-    "intruders": "intruders",
+    "intruders": "intruders", "watch_sinking": "watch_sinking",
 }  # fmt: skip
 
 
@@ -954,6 +954,15 @@ def _add_scene_options(r) -> None:
         "is geoms, bodies, subtree, match (glob patterns on geom names) or collision, NAMES one "
         "or more names separated by spaces, e.g. --intruders 'match=*foot* *calf*'; repeat it "
         "to add selections (docs/mjcf.md)",
+    )
+    r.add_argument(
+        "--no-watch-sinking",
+        dest="watch_sinking",
+        action="store_const",
+        const=False,
+        default=None,
+        help="do not report collision geoms that are below the surface without being intruders "
+        "(default: the model's mjrft:watch_sinking, else on; docs/mjcf.md)",
     )
 
 

@@ -19,10 +19,12 @@ and ``mjrft.core.body`` check theirs. World frame, SI units, rotations body -> w
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import os
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,6 +39,40 @@ _lib: ctypes.CDLL | None = None
 
 class EngineError(RuntimeError):
     """The engine library is missing, was built for another MuJoCo, or a model lacks it."""
+
+
+class SinkingWarning(UserWarning):
+    """A collision geom that is not an intruder is below the medium's surface: the medium does
+    not act on it (engine/watch.h; once per geom and MjData). Silence it with
+    ``SceneOptions(watch_sinking=False)`` or ``warnings.filterwarnings``."""
+
+
+_quiet = threading.local()
+
+
+@contextlib.contextmanager
+def quiet_reports() -> Iterator[None]:
+    """No engine reports from this thread meanwhile: MuJoCo's compiler runs a forward pass on
+    an mjData of its own, whose reports would repeat the user's first step's."""
+    _quiet.depth = getattr(_quiet, "depth", 0) + 1
+    try:
+        yield
+    finally:
+        _quiet.depth -= 1
+
+
+def _report(message: bytes) -> None:
+    """The engine's reports (engine/watch.h), as Python warnings. Runs inside MuJoCo's step: an
+    exception here (warnings turned into errors) cannot cross the C boundary, so it is printed
+    instead (ctypes)."""
+    if getattr(_quiet, "depth", 0):
+        return
+    import warnings
+
+    warnings.warn(message.decode("utf-8", "replace"), SinkingWarning, stacklevel=2)
+
+
+_REPORT = ctypes.CFUNCTYPE(None, ctypes.c_char_p)(_report)  # kept alive: the engine holds it
 
 
 def library_path() -> Path:
@@ -74,6 +110,7 @@ def library() -> ctypes.CDLL:
                     "(`pip install .`) against the installed mujoco"
                 ) from e
             _declare(lib)
+            lib.mjrft_set_report_handler(_REPORT)
             _lib = lib
         return _lib
 
@@ -91,6 +128,8 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.mjrft_state_array.restype = p
     lib.mjrft_state_size.argtypes = [p, p, i, s]
     lib.mjrft_state_size.restype = ctypes.c_longlong
+    lib.mjrft_set_report_handler.argtypes = [ctypes.CFUNCTYPE(None, ctypes.c_char_p)]
+    lib.mjrft_set_report_handler.restype = None
     # engine/capi_kernel.cc
     lib.mjrft_forces.argtypes = [p, p, p, p, n, p, n, f, f, f, p]
     lib.mjrft_forces.restype = i

@@ -144,6 +144,24 @@ def _affine_actuators(model: mujoco.MjModel) -> np.ndarray:
     )
 
 
+def watched_geoms(model: mujoco.MjModel, scene: Scene) -> np.ndarray:
+    """(nwatch,) ids of the geoms the engine reports when they sink untagged (engine/watch.h):
+    collision geoms (contype or conaffinity nonzero) of bodies that move (not welded to the
+    world, or mocap), not intruders, not planes or height fields; none if the scene says so."""
+    if not scene.watch_sinking:
+        return np.zeros(0, dtype=np.int64)
+    tagged = {i.geom for i in scene.intruders}
+    flat = (int(mujoco.mjtGeom.mjGEOM_PLANE), int(mujoco.mjtGeom.mjGEOM_HFIELD))
+    out = []
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        moves = model.body_weldid[b] != 0 or model.body_mocapid[b] >= 0
+        collides = model.geom_contype[g] != 0 or model.geom_conaffinity[g] != 0
+        if moves and collides and g not in tagged and int(model.geom_type[g]) not in flat:
+            out.append(g)
+    return np.array(out, dtype=np.int64)
+
+
 def _dof_masks(model: mujoco.MjModel, bodies) -> np.ndarray:
     out = np.zeros((len(bodies), model.nv), dtype=np.int64)
     for k, be in enumerate(bodies):
@@ -188,6 +206,7 @@ def engine_tables(
         "nelem": offset, "ntgeom": len(geoms), "ntbody": len(bodies), "surface_nrow": nrow,
         "surface_ncol": ncol, "ncoef": len(coef), "nvert": offset if soil else 1,
         "nsoil": surface.soil_block(nrow, ncol) if soil else 1,
+        "nwatch": len(watched := watched_geoms(model, scene)),
         # scalars
         "surface_z": float(scene.surface_z), "use_region": int(region is not None),
         "zeta": float(material.zeta), "alpha_y": float(material.alpha_y0),
@@ -216,6 +235,7 @@ def engine_tables(
         "elem_vert": f8(cat([be.corners for be in bodies], 9) if soil else np.zeros((1, 9))),
         "elem_reach": f8(cat([q[0] for q in quad], 1).ravel()),
         "elem_patch": f8(cat([q[1] for q in quad], quadrature.PATCH_SIZE)),
+        "watch_geomid": i8(watched),
     }  # fmt: skip
 
 

@@ -34,6 +34,8 @@ class SceneOptions:
         their geoms), ``subtree`` (a body's and its descendants' geoms; "world": every body's),
         ``match`` (glob patterns on geom names) and ``collision`` (the collision geoms of
         subtrees), e.g. ``{"match": "*foot* *calf*"}`` (docs/mjcf.md).
+      watch_sinking: False: no ``mjrft.SinkingWarning`` for collision geoms of moving bodies
+        that are below the surface without being intruders (``mjrft:watch_sinking``).
     """
 
     material: Any = None
@@ -46,6 +48,7 @@ class SceneOptions:
     deform_every: int | None = None
     dynamic: float | tuple[float, float] | None = None
     intruders: dict[str, Any] | None = None
+    watch_sinking: bool | None = None
 
     @classmethod
     def of(cls, options: SceneOptions | None = None, **overrides: Any) -> SceneOptions:

@@ -21,7 +21,7 @@ import weakref
 import mujoco
 import numpy as np
 
-from mjrft.core.engine import EngineError, Layout, layout  # noqa: F401 (re-exported)
+from mjrft.core.engine import EngineError, Layout, layout, quiet_reports  # noqa: F401 (re-exported)
 from mjrft.core.engine import library as _library
 from mjrft.field.model import FieldSetup, field_setup
 from mjrft.field.options import SceneOptions
@@ -108,7 +108,7 @@ def add_granular(
             spec.delete(element)
     sensors = _our_sensors(spec)
     if model is None:
-        model = spec.compile()
+        model = _compile(spec)
     _warn_if_passive_skipped(model)
     tables = setup(model, options).tables
     _check_sensors(sensors, model, tables)
@@ -119,6 +119,12 @@ def add_granular(
     config = {k: str(int(tables[k])) for k in ("ntbody", "ntgeom", "nsoil")}
     spec.activate_plugin(PLUGIN)
     spec.add_plugin(name="mjrft", plugin_name=PLUGIN, active=True).config = config
+
+
+def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    """spec compiled, without the engine's reports of the compiler's own forward pass."""
+    with quiet_reports():
+        return spec.compile()
 
 
 def _sensor_plugin(spec: mujoco.MjSpec, sensor) -> str:
@@ -176,7 +182,7 @@ def add_sensors(
     """
     library()
     if geoms is None:
-        model = spec.compile()
+        model = _compile(spec)
         scene = scene_from_model(model, **(options or SceneOptions()).given())
         unnamed = [i.geom for i in scene.intruders if not i.name]
         if unnamed:
@@ -238,7 +244,7 @@ def load_model(
             where = "the MJCF string" if is_xml else repr(text)
             raise ValueError(f"cannot load MJCF model {where}: {exc}") from exc
     add_granular(spec, options=options)
-    model = spec.compile()
+    model = _compile(spec)
     _options[model] = options
     return model
 

@@ -37,6 +37,8 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick, free or off
       <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.field.lowspeed), default 4
+      <numeric name="mjrft:watch_sinking" data="1"/>     0: no SinkingWarning for collision geoms
+                                                         that are below the surface untagged
       <tuple name="mjrft:intruders">                     geoms (or bodies: all their geoms)
         <element objtype="geom" objname="shell" prm="4000"/>   prm: triangles (0 = default),
                                                          or a tolerance in (0, 1), e.g. 0.02
@@ -104,6 +106,7 @@ KEYS = {
         "deform_every",
         "mu_surf",
         "dynamic",
+        "watch_sinking",
     ),
     "tuple": ("intruders",),
 }
@@ -166,6 +169,8 @@ class Scene:
       low_speed: the low-speed treatment (mjrft.lowspeed).
       surface: the free surface (mjrft.core.surface; default the flat one at surface_z, which
         is otherwise its reference height).
+      watch_sinking: report collision geoms of moving bodies that are not intruders when they
+        are below the surface (mjrft.SinkingWarning; ``mjrft:watch_sinking``, default on).
     """
 
     material: Material
@@ -174,6 +179,7 @@ class Scene:
     intruders: tuple[Intruder, ...]
     low_speed: LowSpeed = dataclasses.field(default_factory=LowSpeed)
     surface: Surface | None = None
+    watch_sinking: bool = True
 
     def __post_init__(self) -> None:
         if self.surface is None:
@@ -316,6 +322,7 @@ def scene_from_model(
     deform_every: int | None = None,
     dynamic: float | tuple[float, float] | None = None,
     intruders: dict[str, str | list[str]] | None = None,
+    watch_sinking: bool | None = None,
 ) -> Scene:
     """Read and validate the scene; the keyword arguments override the MJCF's.
 
@@ -333,6 +340,9 @@ def scene_from_model(
     intruders: the geoms that feel the medium, instead of the MJCF's: a dict whose keys are
     among INTRUDER_FORMS (geoms, bodies, subtree, match, collision), each a list of names or
     one string of names separated by spaces; its geoms are the union of the selections.
+
+    watch_sinking: False turns off the report of untagged collision geoms below the surface
+    (``mjrft:watch_sinking``).
     """
     if n_triangles is not None and tolerance is not None:
         raise SceneError("give at most one of n_triangles and tolerance")
@@ -393,7 +403,23 @@ def scene_from_model(
     return Scene(
         material, free_surface.z0, region, intruders,
         _low_speed(model, custom, low_speed, stick_reach), free_surface,
+        _watch_sinking(model, custom, watch_sinking),
     )  # fmt: skip
+
+
+def _watch_sinking(model, custom, given: bool | None) -> bool:
+    """Whether untagged geoms below the surface are reported: the argument, else the MJCF's
+    ``mjrft:watch_sinking`` (0 or 1), else on."""
+    if given is not None:
+        if not isinstance(given, bool | np.bool_):
+            raise SceneError(f"watch_sinking = {given!r}; expected True or False")
+        return bool(given)
+    value = _numeric_field(model, custom, "watch_sinking", (1,), "one number, 0 or 1")
+    if value is None:
+        return True
+    if value[0] not in (0.0, 1.0):
+        raise SceneError(f"<numeric name='{PREFIX}watch_sinking'> = {value[0]:g}; expected 0 or 1")
+    return bool(value[0])
 
 
 #: Steepest tilted-plane surface accepted [degrees]: dry granular media do not stand steeper
