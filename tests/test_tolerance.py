@@ -138,7 +138,10 @@ def test_tolerance_in_mjcf_and_python():
     per_geom = field_for(prm_a="0.003")
     counts = {i.name: (i.n_triangles, i.tolerance) for i in per_geom.scene.intruders}
     assert counts["a"] == (rule(0.003, "sphere"), 0.003)
-    assert counts["b"] == (geometry.DEFAULT_N_TRIANGLES, None)
+    # no tolerance or triangles in the MJCF: the default tolerance, by the box's own rule
+    assert counts["b"] == (rule(geometry.DEFAULT_TOLERANCE, "box"), geometry.DEFAULT_TOLERANCE)
+    fixed = field_for('<numeric name="mjrft:triangles" data="500"/>')
+    assert {i.name: i.tolerance for i in fixed.scene.intruders} == {"a": None, "b": None}
     model_wide = field_for('<numeric name="mjrft:tolerance" data="0.002"/>')
     counts = {i.name: i.n_triangles for i in model_wide.scene.intruders}
     assert counts == {"a": rule(0.002, "sphere"), "b": rule(0.002, "box")}  # each its type's

@@ -92,6 +92,10 @@ TOLERANCE_RULES = {
     "cylinder": (0.88, 0.92),
     "box": (0.36, 0.8),
 }
+#: The scene's default relative force tolerance per primitive geom when an MJCF gives neither
+#: ``mjrft:triangles`` nor ``mjrft:tolerance`` (mjrft.field.scene): 1 % RMS force error, with
+#: each primitive's count from its type's rule (200-656 triangles at the fitted shapes).
+DEFAULT_TOLERANCE = 0.01
 TOLERANCE_FLOOR = 200  # below ~200 triangles errors are not yet asymptotic (a slender tip)
 #: Aspect ratio (longest over shortest extent, ``aspect_ratio``) of the shape each rule was
 #: fitted on, for the types whose error grows with it: a slender ellipsoid's tips and a long

@@ -34,7 +34,8 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
                                                          k > 1 is k times cheaper, the ground
                                                          lagging the intruders by up to k steps)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
-      <numeric name="mjrft:tolerance" data="0.01"/>      default relative force tolerance instead
+      <numeric name="mjrft:tolerance" data="0.01"/>      a relative force tolerance instead (the
+                                                         default: 0.01, counts by type and size)
       <text name="mjrft:low_speed" data="stick"/>        low-speed treatment: stick, free or off
       <numeric name="mjrft:stick_reach" data="4"/>       its reach (mjrft.field.lowspeed), default 4
       <numeric name="mjrft:watch_sinking" data="1"/>     0: no SinkingWarning for collision geoms
@@ -663,7 +664,9 @@ def _region(model: mujoco.MjModel, custom: dict) -> np.ndarray | None:
 
 
 def _default_resolution(model: mujoco.MjModel, custom: dict) -> tuple[float, float | None]:
-    """(default triangles per primitive geom, the tolerance it comes from or None)."""
+    """(default triangles per primitive geom, the tolerance it comes from or None): the MJCF's
+    ``mjrft:triangles``, or a tolerance (``mjrft:tolerance``, else geometry.DEFAULT_TOLERANCE)
+    whose rule gives each primitive its count by type and size."""
     tri = _numeric_field(model, custom, "triangles", (1,), "one integer >= 12")
     tol = _numeric_field(model, custom, "tolerance", (1,), "one number in (0, 1)")
     if tri is not None and tol is not None:
@@ -671,14 +674,15 @@ def _default_resolution(model: mujoco.MjModel, custom: dict) -> tuple[float, flo
             f"<custom> gives both {PREFIX}triangles and {PREFIX}tolerance; use one of them"
         )
     default_tol = None
-    if tol is not None:
+    if tri is None:  # a tolerance: the MJCF's, else the default (geometry.DEFAULT_TOLERANCE)
+        value = geometry.DEFAULT_TOLERANCE if tol is None else tol[0]
         try:
-            default_tri = geometry.triangles_for_tolerance(tol[0])
+            default_tri = geometry.triangles_for_tolerance(value)
         except ValueError as exc:
             raise SceneError(f"<numeric name='{PREFIX}tolerance'>: {exc}") from None
-        default_tol = float(tol[0])
+        default_tol = float(value)
     else:
-        default_tri = geometry.DEFAULT_N_TRIANGLES if tri is None else tri[0]
+        default_tri = tri[0]
     if default_tri != int(default_tri) or default_tri < geometry.MIN_TRIANGLES:
         raise SceneError(
             f"<numeric name='{PREFIX}triangles'> = {default_tri}: expected an integer >= "
