@@ -58,8 +58,8 @@ FALL_TILT = math.radians(60.0)
 JOINT_QPOS = slice(7, 19)
 JOINT_QVEL = slice(6, 18)
 #: The open-loop trot's defaults: frequency [Hz], thigh swing amplitude [rad], knee lift [rad],
-#: ramp-in time [s]. Measured: 0.98 m forward in 6 s, torso tilt at most 10 degrees, each foot
-#: out of the medium 14 % of the time (docs/environments.md).
+#: ramp-in time [s]. Measured: 0.96 m forward in 6 s, torso tilt at most 10.8 degrees, each
+#: foot out of the medium 14 % of the time (docs/environments.md, "The quadruped").
 TROT_FREQUENCY = 1.5
 TROT_THIGH = 0.25
 TROT_KNEE = 0.8

@@ -62,10 +62,10 @@ def test_the_licence_notice_is_kept():
         assert line in text and line in licence
 
 
-#: Settling from the keyframe [m]: the keyframe is the rest state under the model's own Euler at
-#: 2 ms; another integrator or 1 ms re-settles it (measured 0.14-0.38 mm at 2 ms, 8.9-10.5 mm at
-#: 1 ms, where the first substeps carry less of the weight).
-SETTLE = {0.002: 1e-3, 0.001: 15e-3}
+#: Settling from the keyframe [m]: the keyframe is the rest state (benchmarks/quadruped.py
+#: --keyframe); a new MjData there moves 0.004-0.018 mm (measured, every integrator, 1-2 ms) as
+#: its first step feels no RFT yet.
+SETTLE = 1e-4
 #: Drift once settled [m] over the last 2 s of 3 s (measured: below 1e-12 m).
 DRIFT = 1e-5
 
@@ -83,12 +83,12 @@ def test_stands_with_the_home_ctrl_held(integrator, timestep):
     for i in range(n):
         mujoco.mj_step(model, data)
         path[i] = data.qpos[:3]
-    assert np.abs(path[-1] - start).max() < SETTLE[timestep]
+    assert np.abs(path[-1] - start).max() < SETTLE
     assert np.ptp(path[n // 3 :], axis=0).max() < DRIFT
     weight = model.body_subtreemass[1] * G
     lift = fld.wrench_of(data)[lower_legs(model), 2].sum()
     assert lift == pytest.approx(weight, rel=1e-6)  # the medium alone carries it
-    assert data.xmat[1][8] > math.cos(math.radians(5.0))  # level within 5 degrees (3.5 measured)
+    assert data.xmat[1][8] > math.cos(math.radians(5.0))  # level within 5 degrees (3.0 measured)
     _, sinkage = foot_state(model, fld, data)
     assert np.all((0.02 < sinkage) & (sinkage < 0.07))  # feet a few cm deep
     assert data.qpos[2] - 0.057 > 0.1  # the trunk's underside 10 cm above the surface
