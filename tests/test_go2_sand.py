@@ -121,3 +121,31 @@ def test_trots_forward_without_tipping_over(integrator):
     assert lowest_trunk > 0.05
     assert deepest < 0.10
     assert data.qpos[0] > 0.2
+
+
+def test_mjrft_run_trots_it_by_name(tmp_path):
+    """`mjrft run go2_sand --ctrl mjrft.envs.go2_sand:trot_ctrl`: the shipped model by name,
+    driven by the trot's ctrl(t, data)."""
+    import json
+
+    from mjrft.app import cli
+
+    out = tmp_path / "trot"
+    args = ["run", "go2_sand", "--duration", "0.3", "--out", str(out), "--no-plots"]
+    assert cli.main([*args, "--ctrl", "mjrft.envs.go2_sand:trot_ctrl"]) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["status"] == "completed" and run["options"]["ctrl"].endswith(":trot_ctrl")
+
+
+def test_gymnasium_view_passes_the_checker():
+    gymnasium = pytest.importorskip("gymnasium")
+    from gymnasium.utils.env_checker import check_env
+
+    env = gymnasium.make("mjrft/go2_sand-v0", time_limit=0.1)  # importing mjrft.envs registered it
+    try:
+        check_env(env.unwrapped, skip_render_check=True)
+        obs, _ = env.reset(seed=0)
+        sinkage = obs[env.unwrapped.observation_slices["foot_sinkage"]]
+        assert sinkage.shape == (4,) and np.all(sinkage > 0.02)  # the feet rest in the medium
+    finally:
+        env.close()
