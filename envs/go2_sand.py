@@ -82,13 +82,13 @@ def foot_readings(physics: GranularPhysics) -> tuple[np.ndarray, np.ndarray]:
     calves = [model.body(f"{leg}_calf").id for leg in LEGS]
     forces = fld.wrench_of(data)[calves, :3].copy()
     feet = [model.geom(f"{leg}_foot").id for leg in LEGS]
-    lowest = lowest_z(model, data, feet)
+    lowest = _lowest_z(model, data, feet)
     x, y = data.geom_xpos[feet, 0], data.geom_xpos[feet, 1]
     ground = fld.soil(data).height_at(x, y) if fld.deforms else fld.surface.height(x, y)
     return forces, np.maximum(0.0, np.asarray(ground, dtype=np.float64) - lowest)
 
 
-def lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geoms: list[int]) -> np.ndarray:
+def _lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geoms: list[int]) -> np.ndarray:
     """(len(geoms),) world z [m] of each geom's lowest point, exact for spheres, capsules,
     ellipsoids, cylinders and boxes (the support function along -z), the bottom of the
     bounding box for other types."""
