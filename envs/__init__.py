@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from . import ellipsoid_burrow, hexapod_sand, root_probe
+from . import ellipsoid_burrow, go2_sand, hexapod_sand, root_probe
 from .base import GranularEnvironment
 from .physics import GranularPhysics
 
@@ -30,6 +30,7 @@ _MAKERS: dict[str, Callable[..., GranularEnvironment]] = {
     "ellipsoid_burrow": ellipsoid_burrow.make,
     "root_probe": root_probe.make,
     "hexapod_sand": hexapod_sand.make,
+    "go2_sand": go2_sand.make,
 }
 
 #: Names accepted by :func:`load`.

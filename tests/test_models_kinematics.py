@@ -22,6 +22,10 @@ import pytest
 
 MODELS = Path(__file__).resolve().parent.parent / "models"
 XMLS = sorted(MODELS.glob("*.xml"))
+#: Robots tag their legs by subtree and stand on a medium of their own (tests/test_go2_sand.py);
+#: the rig conventions below (an intruder tuple, glass beads, key "start") are the rigs'.
+ROBOTS = {"go2_sand.xml"}
+RIGS = [p for p in XMLS if p.name not in ROBOTS]
 G = 9.81
 
 
@@ -85,7 +89,7 @@ def test_models_exist():
     } <= names
 
 
-@pytest.mark.parametrize("xml", XMLS, ids=lambda p: p.stem)
+@pytest.mark.parametrize("xml", RIGS, ids=lambda p: p.stem)
 def test_tags_and_no_contacts(xml: Path):
     model, _ = load(xml.name)
     tags = intruders(model)
@@ -114,7 +118,7 @@ def test_runs_one_second(xml: Path, integrator: str):
     model, data = load(xml.name)
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator}")
     mujoco.mj_resetDataKeyframe(model, data, 0)
-    for _ in range(1000):
+    for _ in range(round(1.0 / model.opt.timestep)):
         mujoco.mj_step(model, data)
     for arr in (data.qpos, data.qvel, data.act, data.sensordata, data.qacc):
         assert np.all(np.isfinite(arr))

@@ -478,8 +478,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 _MODEL_HELP = (
-    "MJCF model file, or the name of a shipped model (dune_drop, ellipsoid_pitch, hexapod_sand, "
-    "plate_rig, root_circumnutation, sphere_drop)"
+    "MJCF model file, or the name of a shipped model (dune_drop, ellipsoid_pitch, go2_sand, "
+    "hexapod_sand, plate_rig, root_circumnutation, sphere_drop)"
 )
 
 
