@@ -68,50 +68,30 @@ TROT_RAMP = 0.5
 TROT_PHASE = np.array([0.0, math.pi, math.pi, 0.0])
 
 
+#: The intruder geoms of a lower leg, each read by an mjrft.sensor named "rft:<leg>_<part>".
+LOWER_LEG = ("foot", "calf_upper", "calf_lower")
+
+
 def foot_readings(physics: GranularPhysics) -> tuple[np.ndarray, np.ndarray]:
-    """Per-foot RFT force and sinkage of the physics' latest forward pass.
+    """Per-foot RFT force and sinkage of the physics' latest forward pass, from the model's
+    ``mjrft.sensor`` sensors (MuJoCo sensor data: docs/mjcf.md, "Sensors").
 
     Returns:
-      forces (4, 3): world frame [N], legs FR FL RR RL: the RFT force on each lower leg (its
-        calf body: the two calf capsules and the foot sphere), from ``field.wrench_of``.
-      sinkage (4,): [m] how far the lowest point of each foot geom is below the medium's
-        surface at the foot's (x, y) (vertically; the deforming ground as it is now, where it
-        deforms); 0 for a foot above it.
+      forces (4, 3): world frame [N], legs FR FL RR RL: the RFT force the engine applied to each
+        lower leg (its foot sphere and two calf capsules, the sum of their sensors: the calf
+        body's wrench).
+      sinkage (4,): [m] how far the lowest point of each foot sphere is below the medium's
+        surface at the foot (vertically; the deforming ground as it is now, where it deforms); 0
+        for a foot above it.
     """
-    model, data, fld = physics.model.ptr, physics.data.ptr, physics.field
-    calves = [model.body(f"{leg}_calf").id for leg in LEGS]
-    forces = fld.wrench_of(data)[calves, :3].copy()
-    feet = [model.geom(f"{leg}_foot").id for leg in LEGS]
-    lowest = _lowest_z(model, data, feet)
-    x, y = data.geom_xpos[feet, 0], data.geom_xpos[feet, 1]
-    ground = fld.soil(data).height_at(x, y) if fld.deforms else fld.surface.height(x, y)
-    return forces, np.maximum(0.0, np.asarray(ground, dtype=np.float64) - lowest)
-
-
-def _lowest_z(model: mujoco.MjModel, data: mujoco.MjData, geoms: list[int]) -> np.ndarray:
-    """(len(geoms),) world z [m] of each geom's lowest point, exact for spheres, capsules,
-    ellipsoids, cylinders and boxes (the support function along -z), the bottom of the
-    bounding box for other types."""
-    out = np.empty(len(geoms))
-    for i, g in enumerate(geoms):
-        r = data.geom_xmat[g].reshape(3, 3)[2]  # world z of the geom frame's axes
-        size, kind = model.geom_size[g], model.geom_type[g]
-        if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
-            reach = size[0]
-        elif kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            reach = size[0] + size[1] * abs(r[2])
-        elif kind == mujoco.mjtGeom.mjGEOM_ELLIPSOID:
-            reach = float(np.sqrt(np.sum((size * r) ** 2)))
-        elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
-            reach = size[1] * abs(r[2]) + size[0] * math.sqrt(max(0.0, 1.0 - r[2] ** 2))
-        elif kind == mujoco.mjtGeom.mjGEOM_BOX:
-            reach = float(np.abs(r) @ size)
-        else:
-            centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-            out[i] = data.geom_xpos[g, 2] + r @ centre - np.abs(r) @ half
-            continue
-        out[i] = data.geom_xpos[g, 2] - reach
-    return out
+    data = physics.data.ptr
+    forces = np.zeros((len(LEGS), 3))
+    sinkage = np.zeros(len(LEGS))
+    for i, leg in enumerate(LEGS):
+        for part in LOWER_LEG:
+            forces[i] += data.sensor(f"rft:{leg}_{part}").data[:3]
+        sinkage[i] = max(0.0, data.sensor(f"rft:{leg}_foot").data[6])
+    return forces, sinkage
 
 
 def trot_offsets(
@@ -220,7 +200,11 @@ def _heading(rot: np.ndarray) -> np.ndarray:
 
 def build_spec() -> mujoco.MjSpec:
     """The quadruped's MJCF (``models/go2_sand.xml``) as an MjSpec, without the engine
-    (``mjrft.load_model`` adds it)."""
+    (``mjrft.load_model`` adds it). The engine library is loaded first: the MJCF names its
+    sensor plugin, which MuJoCo's parser must know."""
+    from mjrft.field.plugin import library
+
+    library()
     return mujoco.MjSpec.from_file(str(models_dir() / "go2_sand.xml"))
 
 

@@ -19,7 +19,7 @@ INTEGRATORS = ("EULER", "IMPLICITFAST", "RK4")
 
 
 def load(integrator: str = "EULER", timestep: float | None = None) -> mujoco.MjModel:
-    spec = mujoco.MjSpec.from_file(str(MODEL))
+    spec = go2_sand.build_spec()
     spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator}")
     if timestep is not None:
         spec.option.timestep = timestep
@@ -36,7 +36,7 @@ def test_loads_with_the_lower_legs_tagged_and_no_meshes():
     tagged = sorted(i.name for i in fld.scene.intruders)
     parts = ("calf_upper", "calf_lower", "foot")
     assert tagged == sorted(f"{leg}_{p}" for leg in go2_sand.LEGS for p in parts)
-    assert model.nmesh == 0 and model.nplugin == 1
+    assert model.nmesh == 0 and model.nplugin == 1 + 12  # the engine, a sensor per tagged geom
     assert model.body_subtreemass[1] == pytest.approx(15.206408, abs=1e-6)  # Menagerie's Go2
     assert model.key(0).name == "home"
     np.testing.assert_array_equal(model.key_ctrl[0], go2_sand.HOME_CTRL)
