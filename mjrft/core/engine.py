@@ -54,11 +54,12 @@ _quiet = threading.local()
 def quiet_reports() -> Iterator[None]:
     """No engine reports from this thread meanwhile: MuJoCo's compiler runs a forward pass on
     an mjData of its own, whose reports would repeat the user's first step's."""
-    _quiet.depth = getattr(_quiet, "depth", 0) + 1
-    try:
+    before = getattr(_quiet, "depth", 0)
+    try:  # set inside: an exception from a signal handler cannot leave the reports muted
+        _quiet.depth = before + 1
         yield
     finally:
-        _quiet.depth -= 1
+        _quiet.depth = before
 
 
 def _report(message: bytes) -> None:
