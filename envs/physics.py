@@ -6,9 +6,10 @@ that model and writes it into ``xfrc_applied``, with its state in ``mjData.plugi
 force acts in every substep and in every ``forward()`` (resets, rendering) with nothing to install
 or release, and dm_control's split stepping (``legacy_step=True``, the default of
 ``control.Environment``: ``Physics.step`` runs ``mj_step2`` on the forces the previous call's
-``mj_step1`` computed) needs no special care: the wrench that ``mj_step1`` writes stays in
-``xfrc_applied`` (and the engine's state in ``plugin_state``) until the next ``mj_step2`` applies
-it. ``GranularPhysics`` adds the field's description (``field``, a :class:`mjrft.GranularField`
+``mj_step1`` computed) keeps the wrench that ``mj_step1`` writes in ``xfrc_applied`` (and the
+engine's state in ``plugin_state``) until the next ``mj_step2`` applies it; when the controls
+changed since that ``mj_step1``, ``step`` runs the velocity stage again first, since the
+mechanism treatment predicts the actuators' forces from them. ``GranularPhysics`` adds the field's description (``field``, a :class:`mjrft.GranularField`
 for observations: surface, bodies, elements, the deforming ground), loaders that keep the engine
 (dm_control's own ``from_xml_path``/``from_xml_string`` compile plain models without it), copies
 and pickles that keep the scene options, and actuator-work accounting.
@@ -176,10 +177,17 @@ class GranularPhysics(engine.Physics):
         dt = m.opt.timestep
         split = self.legacy_step and m.opt.integrator != mujoco.mjtIntegrator.mjINT_RK4
         with self.check_invalid_state():
+            if split and self._inputs_changed(d):
+                # The engine's pass of this state ran in the last mj_step1, before the task set
+                # this step's controls; the mechanism treatment predicts the actuators' forces
+                # from them, so it runs again (a repeated pass at the same time reads the inputs
+                # the first one read) and mj_step2 applies what mj_step would have.
+                mujoco.mj_fwdVelocity(m, d)
             for _ in range(nstep):
                 if split:  # dm_control's legacy step, one substep at a time
                     mujoco.mj_step2(m, d)
                     mujoco.mj_step1(m, d)
+                    self._inputs = (d.ctrl.copy(), d.act.copy())
                 else:
                     mujoco.mj_step(m, d)
                     if self.legacy_step:  # RK4: dm_control re-syncs positions with mj_step1
@@ -187,6 +195,15 @@ class GranularPhysics(engine.Physics):
                 self._work += np.abs(d.actuator_force * d.actuator_velocity) * dt
                 self._work_substeps += 1
                 self.substeps += 1
+
+    def _inputs_changed(self, d: mujoco.MjData) -> bool:
+        """True unless ctrl and act are what the last mj_step1's pass saw."""
+        seen = getattr(self, "_inputs", None)
+        return (
+            seen is None
+            or not np.array_equal(seen[0], d.ctrl)
+            or not np.array_equal(seen[1], d.act)
+        )
 
     def take_work(self) -> tuple[np.ndarray, int]:
         """(work per actuator [J], substeps) accumulated since the last call; resets both."""
