@@ -307,6 +307,7 @@ void Instance::ResetCaches() {
   const i64 nv = sizes_.nv, nk = sizes_.nk, cells = sizes_.soil_nrow * sizes_.soil_ncol;
   for (i64 i = 0; i < 1 + nk + 6 * nv + 6 * nk; i++) w.mech_cfg[i] = -1.0;
   for (i64 i = 0; i < 1 + 6 * nk; i++) w.mech_hkey[i] = -2;
+  for (i64 g = 0; g < sizes_.ng; g++) w.geom_pure_pass[g] = -1;
   for (i64 i = 0; i < cells; i++) {
     w.soil_floor[i] = INFINITY;
     w.soil_owner[i] = -1;

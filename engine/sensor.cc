@@ -36,6 +36,13 @@ void PureGeomWrench(const mjData* d, const Tables& t, const State& s, int g, con
   }
 }
 
+// The local surface's height above tagged geom g's lowest point [m] (0 for a geom without one).
+f64 Sinkage(const mjModel* m, const mjData* d, const Tables& t, const State& s, int g) {
+  f64 low[3];
+  if (!LowestPoint(m, d, static_cast<int>(t.tgeom_geomid[g]), low)) return 0.0;
+  return surface::Height(t.surface_prm, t.surface_grid, s.soil, low[0], low[1]) - low[2];
+}
+
 f64 Norm3(const f64* v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 // The tagged index of MuJoCo geom `geom` in t, or -1.
@@ -107,34 +114,54 @@ void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
       for (int c = 0; c < kReadingSize; c++) out[c] = 0.0;
       continue;
     }
-    GeomReading(m, d, in->tables(), in->Bind(m, d), g, out);
+    State st = in->Bind(m, d);
+    GeomReading(m, d, in->tables(), st, g, out);
   }
 }
 
 }  // namespace
 
-void GeomReading(const mjModel* m, const mjData* d, const Tables& t, const State& s, int g,
+void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, int g,
                  f64 out[kReadingSize]) {
   // 1. the pure model's wrench on each geom of the body, about the body's centre of mass
+  //    (once per pass and geom: a body's geoms share the sums)
   i64 k = t.tgeom_tbody[g];
   i64 b = t.tbody_bodyid[k];
   const f64* com = d->xipos + 3 * b;
-  f64 pure[6] = {0}, body[6] = {0}, total = 0.0;
+  f64 body[6] = {0}, total = 0.0;
   int in_play = 0;
   for (i64 h = t.tbody_geomadr[k]; h < t.tbody_geomadr[k] + t.tbody_geomnum[k]; h++) {
-    f64 w[6];
-    PureGeomWrench(d, t, s, static_cast<int>(h), com, w);
-    for (int c = 0; c < 6; c++) body[c] += w[c];
-    if (h == g) {
-      for (int c = 0; c < 6; c++) pure[c] = w[c];
+    f64* w = s.geom_pure + 6 * h;
+    if (s.geom_pure_pass[h] != s.stats[0]) {
+      PureGeomWrench(d, t, s, static_cast<int>(h), com, w);
+      s.geom_pure_pass[h] = s.stats[0];
     }
+    for (int c = 0; c < 6; c++) body[c] += w[c];
     total += Norm3(w);
     in_play += !s.cull[h];
   }
+  const f64* pure = s.geom_pure + 6 * g;
 
   // 2. the geom's share of what the treatment changed: as the pure forces share the body's
-  //    load, evenly among the geoms in play where no pure force acts
-  f64 share = total > 0.0 ? Norm3(pure) / total : (in_play && !s.cull[g] ? 1.0 / in_play : 0.0);
+  //    load; where no pure force acts (a body held at rest), evenly among its geoms below the
+  //    surface, else among those in play
+  f64 share = 0.0;
+  if (total > 0.0) {
+    share = Norm3(pure) / total;
+  } else {
+    int below = 0;
+    bool mine = false;
+    for (i64 h = t.tbody_geomadr[k]; h < t.tbody_geomadr[k] + t.tbody_geomnum[k]; h++) {
+      bool under = !s.cull[h] && Sinkage(m, d, t, s, static_cast<int>(h)) > 0.0;
+      below += under;
+      mine = mine || (h == g && under);
+    }
+    if (below > 0) {
+      share = mine ? 1.0 / below : 0.0;
+    } else if (in_play && !s.cull[g]) {
+      share = 1.0 / in_play;
+    }
+  }
   const f64* applied = s.wrench + 6 * b;
   f64 w[6];
   for (int c = 0; c < 6; c++) w[c] = pure[c] + share * (applied[c] - body[c]);
@@ -148,12 +175,7 @@ void GeomReading(const mjModel* m, const mjData* d, const Tables& t, const State
   out[5] = w[5] + r[0] * w[1] - r[1] * w[0];
 
   // 4. sinkage: the local surface's height above the lowest point
-  f64 low[3];
-  if (LowestPoint(m, d, static_cast<int>(t.tgeom_geomid[g]), low)) {
-    out[6] = surface::Height(t.surface_prm, t.surface_grid, s.soil, low[0], low[1]) - low[2];
-  } else {
-    out[6] = 0.0;
-  }
+  out[6] = Sinkage(m, d, t, s, g);
 }
 
 void RegisterSensor() {

@@ -11,7 +11,8 @@
 // (geom_xpos) applied to the geom, world frame, then its sinkage [m]: the local surface's
 // height above the geom's lowest point (lowest.h; negative while the geom is above the surface).
 // The force and torque are those the low-speed treatment applied: a body's applied wrench is
-// shared among its geoms as the pure model's forces on them are, so the readings of a body's
+// shared among its geoms as the pure model's forces on them are (evenly among its geoms below
+// the surface where no pure force acts: a body held at rest), so the readings of a body's
 // geoms add up to the wrench its xfrc_applied row received (docs/mjcf.md, "Sensors").
 //
 // The readings are computed after the passive stage (needstage mjSTAGE_VEL), from the
@@ -28,8 +29,8 @@ constexpr char kSensorPluginName[] = "mjrft.sensor";
 constexpr int kReadingSize = 7;
 
 // Sets out (kReadingSize) to the reading of tagged geom g (an index into tgeom_*) from the
-// state of the last pass on d.
-void GeomReading(const mjModel* m, const mjData* d, const Tables& t, const State& s, int g,
+// state of the last pass on d (caching each geom's pure wrench for the pass in s.geom_pure).
+void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, int g,
                  f64 out[kReadingSize]);
 
 // Registers mjrft.sensor with MuJoCo (once per process).

@@ -9,8 +9,9 @@ or release, and dm_control's split stepping (``legacy_step=True``, the default o
 ``mj_step1`` computed) keeps the wrench that ``mj_step1`` writes in ``xfrc_applied`` (and the
 engine's state in ``plugin_state``) until the next ``mj_step2`` applies it; when the controls
 changed since that ``mj_step1``, ``step`` runs the velocity stage again first, since the
-mechanism treatment predicts the actuators' forces from them. ``GranularPhysics`` adds the field's description (``field``, a :class:`mjrft.GranularField`
-for observations: surface, bodies, elements, the deforming ground), loaders that keep the engine
+mechanism treatment predicts the actuators' forces from them. ``GranularPhysics`` adds the
+field's description (``field``, a :class:`mjrft.GranularField` for observations: surface,
+bodies, elements, the deforming ground), loaders that keep the engine
 (dm_control's own ``from_xml_path``/``from_xml_string`` compile plain models without it), copies
 and pickles that keep the scene options, and actuator-work accounting.
 

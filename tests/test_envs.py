@@ -612,10 +612,18 @@ def test_bad_actions_and_a_closed_environment_are_named():
 # --- the quadruped -------------------------------------------------------------------------------
 
 
+#: The sinkage is the analytic geom's; the force comes from its triangles' curved patches, which
+#: reach the analytic surface only at their corners: a capsule of 100 triangles deviates by up to
+#: its chords' sag (0.5 mm at 11 mm radius, ~10 facets around), so within that a geom just above
+#: the surface may still feel a little of the medium.
+MESH_SAG = 1e-3
+
+
 def test_go2_foot_readings_are_the_lower_leg_wrench_and_the_feet_depth():
     """foot_readings: per leg the RFT force on its lower leg (the calf body's wrench) and how deep
-    its foot sphere's lowest point is below the surface; in the trot the lifted feet read 0 of
-    both, the planted ones carry the robot, and the observations carry the same numbers."""
+    its foot sphere's lowest point is below the surface; in the trot a geom above the surface
+    reads no force, the planted feet carry the robot, and the observations carry the same
+    numbers."""
     env = make("go2_sand", seed=0, time_limit=float("inf"))
     try:
         env.reset()
@@ -639,7 +647,11 @@ def test_go2_foot_readings_are_the_lower_leg_wrench_and_the_feet_depth():
             np.testing.assert_array_equal(ts.observation["foot_force"], forces.ravel())
             np.testing.assert_array_equal(ts.observation["foot_sinkage"], sinkage)
             up = sinkage == 0.0
-            assert np.all(forces[up] == 0.0)  # a foot above the surface: its calf too
+            for leg in go2_sand.LEGS:  # a geom clear of the surface feels nothing
+                for part in go2_sand.LOWER_LEG:
+                    reading = data.sensor(f"rft:{leg}_{part}").data
+                    clear = reading[6] < -MESH_SAG
+                    assert not clear or np.all(reading[:3] == 0.0), (leg, part, reading)
             lifted += up.sum()
             planted += (~up).sum()
             lift.append(forces[:, 2].sum())
