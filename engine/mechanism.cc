@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "evaluate.h"
+#include "law.h"
 #include "lowspeed.h"
 #include "surface.h"
 
@@ -451,7 +452,14 @@ void Resistance(const mjModel* m, const mjData* d, const Tables& t, State& s, in
     for (int r = 0; r < 6; r++) out[r] = stored[r];
     return;
   }
-  TwistWrench(m, d, t, s, k, twist, twist + 3, out, nullptr);
+  // The resistance to starting to move: a rate-independent medium's depends on the direction
+  // only; a dynamic term's (lambda rho_c (n.v)^2) is evaluated at a slow start, not at the
+  // release velocity -dt A W, which a light leg's mobility makes arbitrarily fast.
+  f64 slow[6];
+  f64 scale =
+      law::DynamicCoefficient(t.coef, t.ncoef) > 0.0 && norm > 0.0 ? kQuasiStaticSpeed / norm : 1.0;
+  for (int r = 0; r < 6; r++) slow[r] = scale * twist[r];
+  TwistWrench(m, d, t, s, k, slow, slow + 3, out, nullptr);
   for (int r = 0; r < 6; r++) stored[r] = out[r];
   for (int r = 0; r < 19; r++) old[r] = key[r];
 }

@@ -73,6 +73,11 @@ constexpr f64 kHoldRegularisation = 1e-12;
 // reuse halves the treatment's cost on a standing robot (benchmarks/standing.py).
 constexpr f64 kResistanceReuseM = 1e-9;
 constexpr f64 kResistanceReuseRad = 1e-2;
+// Speed [m/s] (CoM speed and body size times angular speed, combined) at which a hold's
+// resistance is evaluated when the medium has a dynamic term: the term (lambda rho_c (n.v)^2,
+// 1.5e-3 Pa at 1 mm/s for rho_c 1500 kg/m^3) is then ~1e-6 of the quasi-static pressure at a
+// millimetre's depth, so the resistance is the medium's to a start from rest.
+constexpr f64 kQuasiStaticSpeed = 1e-3;
 // The factors of M and of the holds' system are kept while the configuration (cdof, CoMs) moves
 // less than this [m, dimensionless]: a body at rest moves ~1e-17 m a step; 1e-12 m of motion
 // changes the factors by ~1e-11 of themselves.
@@ -167,9 +172,10 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
 int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
               const i64* code, const f64* out, f64* slip);
 
-// out (6) = the RFT wrench on tagged body k moving with twist (6): reused from the last
-// evaluation (s.mech_R) while the body and the twist's direction are where they were then
-// (s.mech_key; kResistanceReuseM, kResistanceReuseRad).
+// out (6) = the RFT wrench on tagged body k moving with twist (6) (with a dynamic term: in
+// twist's direction at kQuasiStaticSpeed): reused from the last evaluation (s.mech_R) while the
+// body and the twist's direction are where they were then (s.mech_key; kResistanceReuseM,
+// kResistanceReuseRad).
 void Resistance(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
                 const f64* twist, f64* out);
 
