@@ -176,8 +176,9 @@ RUN_JSON = "run.json"
 RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
-#: Exit code of `mjrft sweep` when runs failed (their rows say why).
-EXIT_RUNS_FAILED = 3
+#: Exit codes of `mjrft sweep`: runs failed (their rows say why); the sweep stopped for a failure
+#: outside its runs (a full disk; sysexits.h's EX_IOERR).
+EXIT_RUNS_FAILED, EXIT_SWEEP_STOPPED = 3, 74
 
 
 class Terminated(KeyboardInterrupt):
@@ -585,16 +586,20 @@ def _add_sweep(sub) -> None:
             "Run every run of STUDY (a TOML file: the model, the parameters and where each goes "
             "in the model, their values, the duration and the metrics; docs/sweeps.md), each in "
             "a worker built from scratch, and append one row per finished run to "
-            "DIR/results.csv (run id, parameters, metrics, status, error, wall time, seed, "
-            "versions), flushed as runs finish; then write a PNG per metric into DIR (a line "
-            "over one varied parameter, a heat map over two). The first run is loaded before "
-            "any starts: if it and the run most unlike it fail to load with the same error, the "
-            "sweep stops with that error. A run that fails (its values do not compile, it "
-            "diverges, user code raises) is recorded with its error and the others go on. On "
-            "Ctrl-C or SIGTERM no new run starts, the runs in flight are stopped, the finished "
-            "rows are kept and the command says how to resume. Exit codes: 0 done, every run "
-            "ok, 2 bad input, 3 done with failed runs (the command says how many), 130 "
-            "interrupted, 143 terminated."
+            "DIR/results.csv (run id, parameters, metrics, max_froude and quasi_static, status, "
+            "error, warnings, wall time, seed, versions), flushed as runs finish; then write a "
+            "PNG per metric into DIR (a line over one varied parameter, a heat map over two). "
+            "One sweep at a time writes DIR (a second is refused, naming the first's pid and "
+            "host). The first run is loaded before any starts: if it and the run most unlike it "
+            "fail to load with the same error, the sweep stops with that error. A run that fails "
+            "(its values do not compile, it diverges, user code raises) is recorded with its "
+            "error and the others go on; one that fails for a reason outside it (its worker "
+            "killed, the disk full) has status retry and --resume runs it again. On Ctrl-C, "
+            "SIGTERM or a full disk no new run starts, the runs in flight are stopped, the "
+            "finished rows are kept whole and the command says how to resume. Exit codes: 0 "
+            "done, every run ok, 2 bad input or DIR in use, 3 done with failed or retry runs "
+            "(the command says how many), 74 stopped by a failure outside the runs (a full "
+            "disk), 130 interrupted, 143 terminated."
         ),
     )
     s.add_argument("study", metavar="STUDY", help="the study description (TOML)")
@@ -631,21 +636,30 @@ def _add_sweep(sub) -> None:
 
 
 class _SweepProgress:
-    """``run_study``'s progress on stderr: runs done and the ETA, and each failed run's error."""
+    """``run_study``'s progress on stderr as a tqdm bar (runs done, rate, ETA), and each failed
+    run's error on a line of its own."""
 
     def __init__(self, name: str) -> None:
         self.name, self.done, self.total, self.bar = name, 0, 0, None
 
     def __call__(self, done: int, total: int, row: dict | None) -> None:
+        from tqdm import tqdm
+
         self.done, self.total = done, total
         if row is None:
-            self.bar = _Progress(f"mjrft sweep {self.name}", after=0.0)
+            tty = sys.stderr.isatty()
+            self.bar = tqdm(
+                total=total, desc=f"mjrft sweep {self.name}", unit="run", file=sys.stderr,
+                dynamic_ncols=True, mininterval=0.2 if tty else 30.0, smoothing=0.1,
+            )  # fmt: skip
             return
         if row["status"] != "ok":
-            end = "\n" if self.bar.tty and self.bar.shown else ""
-            print(f"{end}  run {row['run_id']} failed: {row['error']}", file=sys.stderr)
-        self.bar.label = f"mjrft sweep {self.name}: {done}/{total} runs"
-        self.bar(done / total)
+            self.bar.write(f"  run {row['run_id']} {row['status']}: {row['error']}", sys.stderr)
+        self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def _sweep(args: argparse.Namespace) -> int:
@@ -662,34 +676,54 @@ def _sweep(args: argparse.Namespace) -> int:
         return 0
     progress = _SweepProgress(study.name)
     address = None if args.ray in (None, RAY_LOCAL) else args.ray
+    again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
+    again += ["--workers", str(args.workers)] if args.workers else []
+    again += ["--ray", args.ray] if args.ray else []
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         summary = sweep.run_study(
             study, out, workers=args.workers, backend="ray" if args.ray else "local",
             address=address, resume=args.resume, progress=progress,
         )  # fmt: skip
-    except KeyboardInterrupt as exc:
+    except (KeyboardInterrupt, sweep.SweepStopped) as exc:
+        progress.close()
         how = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
-        again += ["--workers", str(args.workers)] if args.workers else []
-        again += ["--ray", args.ray] if args.ray else []
+        if isinstance(exc, sweep.SweepStopped):
+            how = f"stopped ({exc})"
         print(
             f"\nmjrft sweep: {how} after {progress.done} of {progress.total} runs; every finished "
             f"run is in {out / 'results.csv'}; resume with: {shlex.join(again)}",
             file=sys.stderr,
         )
+        if isinstance(exc, sweep.SweepStopped):
+            return EXIT_SWEEP_STOPPED
         return EXIT_TERMINATED if how == "terminated" else EXIT_INTERRUPTED
     finally:
+        progress.close()
         signal.signal(signal.SIGTERM, previous)
-    elapsed = time.perf_counter() - args.started[0]
+    return _sweep_report(study.name, summary, time.perf_counter() - args.started[0], again)
+
+
+def _sweep_report(name: str, summary, elapsed: float, again: list[str]) -> int:
+    """Print what a finished sweep did, its warnings once, and its failed runs; the exit code."""
+    import shlex
+
     before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
     print(
-        f"mjrft sweep {study.name}: {summary.computed} runs computed ({summary.failed} failed, "
+        f"mjrft sweep {name}: {summary.computed} runs computed ({summary.failed} failed, "
         f"see the error column), {summary.skipped} already in the table{before}, "
         f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
         f"{summary.table}"
     )
+    for line in summary.warning_lines():
+        print(f"mjrft sweep: warning: {line} (each run's: the warnings column)", file=sys.stderr)
     failed = summary.failed + summary.failed_before
+    if summary.retry:
+        print(
+            f"mjrft sweep: {summary.retry} runs did not finish for a reason outside them (status "
+            f"retry); run them again with: {shlex.join(again)}",
+            file=sys.stderr,
+        )
     if failed:
         print(
             f"mjrft sweep: {failed} of {summary.total} runs failed; their errors are in the "

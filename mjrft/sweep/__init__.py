@@ -11,17 +11,19 @@ Modules: ``study`` (the description, its runs), ``paths`` (where values go in th
     summary = run_study(study, "out", workers=2)
 """
 
-from mjrft.sweep.errors import StudyError
+from mjrft.sweep.errors import FolderLocked, StudyError, SweepStopped
 from mjrft.sweep.plots import plot_study
 from mjrft.sweep.results import check_same_study, load_results
 from mjrft.sweep.runner import SweepSummary, run_study
 from mjrft.sweep.study import Parameter, RunSpec, Study
 
 __all__ = [
+    "FolderLocked",
     "Parameter",
     "RunSpec",
     "Study",
     "StudyError",
+    "SweepStopped",
     "SweepSummary",
     "check_same_study",
     "load_results",

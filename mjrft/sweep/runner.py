@@ -9,9 +9,9 @@ from pathlib import Path
 
 from mjrft.field.signals import HeldSignals
 from mjrft.sweep import backends
-from mjrft.sweep.errors import StudyError, one_line
-from mjrft.sweep.executor import STATUS_OK
-from mjrft.sweep.results import RESULTS_CSV, ResultsTable, load_results
+from mjrft.sweep.errors import StudyError, SweepStopped, one_line
+from mjrft.sweep.executor import STATUS_OK, STATUS_RETRY, stops_the_sweep
+from mjrft.sweep.results import RESULTS_CSV, ResultsTable, describe, load_results
 from mjrft.sweep.study import RunSpec, Study
 
 #: progress(done, total, row): after each finished run (row None at the start); counts are of
@@ -22,15 +22,31 @@ Progress = Callable[[int, int, "dict | None"], None]
 @dataclass
 class SweepSummary:
     """What ``run_study`` did: runs in the study, already in the folder (skipped), computed now,
-    failed among those, failed among the skipped ones; the results table and plots written."""
+    failed among those (status "failed" or "retry"), "retry" among those (a resume runs them
+    again), failed among the skipped ones; the results table and plots written; and the
+    warnings the runs computed now raised: "Category: message" -> the runs that raised it."""
 
     total: int
     skipped: int
     computed: int = 0
     failed: int = 0
+    retry: int = 0
     failed_before: int = 0
     table: Path = Path()
     plots: list[Path] = field(default_factory=list)
+    warnings: dict[str, list[str]] = field(default_factory=dict)
+
+    def warning_lines(self) -> list[str]:
+        """One line per category of warning: how many runs raised it and the first message, for
+        a summary printed once per sweep (each run's own are in its warnings column)."""
+        groups: dict[str, tuple[str, set[str]]] = {}
+        for text, run_ids in self.warnings.items():
+            _, ids = groups.setdefault(text.split(":")[0], (text, set()))
+            ids.update(run_ids)
+        return [
+            f"{name} in {len(ids)} of {self.computed} runs; the first: {first.split(': ', 1)[1]}"
+            for name, (first, ids) in groups.items()
+        ]
 
 
 def run_study(
@@ -55,8 +71,11 @@ def run_study(
         without it a folder that holds a sweep is refused.
     Raises:
       StudyError for bad input, and before any run starts and anything is written when every
-      run would fail to load alike (``check_loads``); KeyboardInterrupt (Ctrl-C) after ending
-      the runs in flight, with every finished row on disk (resume with ``resume=True``).
+      run would fail to load alike (``check_loads``); FolderLocked (a StudyError) when another
+      sweep is writing `out`; KeyboardInterrupt (Ctrl-C) after ending the runs in flight, with
+      every finished row on disk (resume with ``resume=True``); SweepStopped, likewise, when
+      something outside the runs fails (the disk full: the table keeps every whole row, the
+      run that met it is "retry").
     """
     if backend not in backends.BACKENDS:
         raise StudyError(f"backend {backend!r}; valid: {', '.join(backends.BACKENDS)}")
@@ -76,25 +95,60 @@ def run_study(
             table.append(row)
         summary.computed += 1
         summary.failed += row["status"] != STATUS_OK
+        summary.retry += row["status"] == STATUS_RETRY
+        for text in filter(None, row.get("warnings", "").split(" | ")):
+            summary.warnings.setdefault(text, []).append(row["run_id"])
         if progress is not None:
             progress(summary.computed, len(pending), row)
+        if stops_the_sweep(row):
+            raise SweepStopped(
+                f"run {row['run_id']} could not write its files: {row['error']}; every later "
+                "run would fail alike, so the sweep stopped (the run is recorded with status "
+                "retry and a resume runs it again)"
+            )
 
     if progress is not None:
         progress(0, len(pending), None)
     try:
-        if backend == "serial":
-            backends.serial(study, pending, out, on_row)
-        elif backend == "local":
-            backends.local(study, pending, out, on_row, workers or backends.cores())
-        else:
-            backends.ray_backend(study, pending, out, on_row, workers, address)
+        _remove_partial_series(out)
+        _run_backend(study, pending, out, on_row, backend, workers, address)
+        if plots:
+            summary.plots = _plots(study, out)
     finally:
+        _remove_partial_series(out)  # of runs stopped in flight: never recorded
         table.close()
-    if plots:
-        from mjrft.sweep.plots import plot_study
-
-        summary.plots = plot_study(study, out)
     return summary
+
+
+def _remove_partial_series(out: Path) -> None:
+    """Remove the unfinished time series (``runs/.<run_id>.csv.<pid>.tmp``) of runs that were
+    stopped in flight, by this sweep or an earlier one: with the folder locked and this sweep's
+    workers ended, no run is writing them."""
+    from mjrft.sweep.executor import RUNS_DIR
+
+    for tmp in (out / RUNS_DIR).glob(".*.csv.*.tmp"):
+        tmp.unlink(missing_ok=True)
+
+
+def _run_backend(study, pending, out, on_row, backend, workers, address) -> None:
+    if backend == "serial":
+        backends.serial(study, pending, out, on_row)
+    elif backend == "local":
+        backends.local(study, pending, out, on_row, workers or backends.cores())
+    else:
+        backends.ray_backend(study, pending, out, on_row, workers, address)
+
+
+def _plots(study: Study, out: Path) -> list[Path]:
+    from mjrft.sweep.plots import plot_study
+
+    try:
+        return plot_study(study, out)
+    except OSError as exc:
+        raise SweepStopped(
+            f"every run is in {str(out / RESULTS_CSV)!r}, but its figures could not be written: "
+            f"{describe(exc)}; draw them with --plots-only (plot_study) once there is room"
+        ) from None
 
 
 def check_loads(study: Study) -> None:

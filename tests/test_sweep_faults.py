@@ -1,0 +1,163 @@
+"""Sweeps under faults: one writer per results folder, a full disk or a killed worker recorded so
+that a resume runs those runs again, no cut row left behind, and a clear message instead of a
+traceback."""
+
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_sweep import _wait_for_rows, plate_study, table
+
+from mjrft.app import cli
+from mjrft.sweep import FolderLocked, Study, load_results, run_study
+from mjrft.sweep.results import LOCK_FILE, RESULTS_CSV
+
+# The sphere drop, 8 runs of 20 steps: fast, and each run's time series (timeseries = true) is
+# about 10 kB.
+DROP = """
+[study]
+model = "sphere_drop"
+duration = 0.02
+timeseries = {timeseries}
+{controller}
+[parameters.z]
+path = "key.start.qpos[2]"
+range = {{ start = 0.011, stop = 0.018, step = 0.001 }}
+[set]
+triangles = 200
+[metrics]
+depth_m = {{ kind = "final_depth", body = "sphere" }}
+"""
+
+
+def drop_study(tmp_path: Path, timeseries: bool = False, controller: str = "") -> Path:
+    path = tmp_path / "drop.toml"
+    path.write_text(DROP.format(timeseries=str(timeseries).lower(), controller=controller))
+    return path
+
+
+def sweep_cmd(study: Path, out: Path, *extra: str) -> list[str]:
+    return [sys.executable, "-m", "mjrft.app.cli", "sweep", str(study), "--out", str(out), *extra]
+
+
+def limited(max_bytes: int):
+    """A preexec_fn: files of this process and its workers end at max_bytes (RLIMIT_FSIZE), and
+    a write past it fails with EFBIG instead of killing the process (SIGXFSZ ignored): a disk
+    that fills at a chosen size, without a filesystem of that size."""
+
+    def apply() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (max_bytes, max_bytes))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    return apply
+
+
+def whole_rows(out: Path) -> list[str]:
+    text = (out / RESULTS_CSV).read_text()
+    assert text.endswith("\n"), "a cut row was left in the table"
+    return text.splitlines()[1:]
+
+
+def test_a_second_writer_of_a_folder_is_refused_naming_the_first(tmp_path):
+    path = plate_study(tmp_path, duration=3.0, pitches=(0, 5, 10, 15))  # 16 runs of ~0.2 s
+    study, out = Study.load(path), tmp_path / "out"
+    first = subprocess.Popen(sweep_cmd(path, out, "--workers", "1"), stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        _wait_for_rows(out / RESULTS_CSV, first, 1)
+        holder = f"pid {first.pid} on host {socket.gethostname()}"
+        second = subprocess.run(sweep_cmd(path, out, "--resume"), capture_output=True, text=True,
+                                timeout=120)  # fmt: skip
+        assert second.returncode == 2, second.stderr
+        assert "is being written by another sweep" in second.stderr and holder in second.stderr
+        with pytest.raises(FolderLocked, match=holder):
+            run_study(study, out, backend="serial", resume=True, plots=False)
+    finally:
+        first.send_signal(signal.SIGTERM)
+        _, err = first.communicate(timeout=60)
+    assert first.returncode == cli.EXIT_TERMINATED, err
+    # The lock went with its process: a resume now runs the rest, each run once.
+    summary = run_study(study, out, workers=2, resume=True, plots=False)
+    ids = [r["run_id"] for r in load_results(out)]
+    assert summary.computed > 0 and sorted(ids) == sorted(r.run_id for r in study.runs())
+    assert (out / LOCK_FILE).exists()
+
+
+def test_a_full_disk_under_the_table_stops_the_sweep_without_a_cut_row(tmp_path):
+    path = drop_study(tmp_path)
+    study = Study.load(path)
+    run_study(study, tmp_path / "whole", backend="serial", plots=False)
+    lines = (tmp_path / "whole" / RESULTS_CSV).read_text().splitlines(keepends=True)
+    # Room for study.json (the largest file written before the rows), then half a row more than
+    # the whole rows that fit: the next row gets cut.
+    study_json = (tmp_path / "whole" / "study.json").stat().st_size
+    kept = next(k for k in range(1, len(lines)) if sum(map(len, lines[: k + 1])) > study_json)
+    room = sum(map(len, lines[: kept + 1])) + len(lines[kept + 1]) // 2
+    out = tmp_path / "out"
+    proc = subprocess.run(sweep_cmd(path, out, "--workers", "2"), capture_output=True, text=True,
+                          timeout=300, preexec_fn=limited(room))  # fmt: skip
+    assert proc.returncode == cli.EXIT_SWEEP_STOPPED, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert "File too large (EFBIG)" in proc.stderr and "the table keeps every row" in proc.stderr
+    assert f"resume with: mjrft sweep {path} --out {out} --resume" in proc.stderr
+    assert len(whole_rows(out)) == kept
+    summary = run_study(study, out, workers=2, resume=True, plots=False)
+    assert summary.skipped == kept and summary.computed == 8 - kept and summary.failed == 0
+    assert table(out, study) == table(tmp_path / "whole", study)
+
+
+def test_a_run_whose_files_meet_a_full_disk_is_retried_by_the_resume(tmp_path):
+    """Each run's time series is larger than the disk's room: the first run that meets it is
+    recorded as "retry" (not "failed"), the sweep stops, and a resume with room reruns it."""
+    path = drop_study(tmp_path, timeseries=True)
+    study, out = Study.load(path), tmp_path / "out"
+    proc = subprocess.run(sweep_cmd(path, out, "--workers", "1"), capture_output=True,
+                          text=True, timeout=300, preexec_fn=limited(4000))  # fmt: skip
+    assert proc.returncode == cli.EXIT_SWEEP_STOPPED, proc.stderr
+    assert "Traceback" not in proc.stderr and "could not write its files" in proc.stderr
+    rows = load_results(out)
+    assert [r["status"] for r in rows] == ["retry"] and "File too large" in rows[0]["error"]
+    assert not list((out / "runs").glob(".*.tmp")), "a half-written time series was left"
+    summary = run_study(study, out, workers=1, resume=True, plots=False)
+    assert summary.skipped == 0 and summary.computed == 8 and summary.failed == 0
+    rows = load_results(out)
+    assert sorted(r["run_id"] for r in rows) == sorted(r.run_id for r in study.runs())
+    assert {r["status"] for r in rows} == {"ok"}
+    assert len(list((out / "runs").glob("*.csv"))) == 8
+
+
+KILLER = """
+import os, signal
+from pathlib import Path
+
+def make(model):
+    flag = Path(__file__).with_name("kill_at.txt")
+    if flag.exists() and float(flag.read_text()) == float(model.key_qpos[0, 2]):
+        os.kill(os.getpid(), signal.SIGKILL)  # the worker dies, as under the OOM killer
+    return lambda t, data: None
+"""
+
+
+def test_a_run_whose_worker_is_killed_is_retried_by_the_resume(tmp_path):
+    (tmp_path / "killer.py").write_text(KILLER)
+    (tmp_path / "kill_at.txt").write_text("0.015")
+    path = drop_study(tmp_path, controller='controller = "killer.py:make"')
+    study, out = Study.load(path), tmp_path / "out"
+    summary = run_study(study, out, workers=2, plots=False)
+    assert summary.computed == 8 and summary.retry == 1 and summary.failed == 1
+    (killed,) = [r for r in load_results(out) if r["status"] != "ok"]
+    assert killed["z"] == 0.015 and killed["status"] == "retry"
+    assert "worker process died twice" in killed["error"]
+    os.remove(tmp_path / "kill_at.txt")
+    summary = run_study(study, out, workers=2, resume=True, plots=False)
+    assert summary.skipped == 7 and summary.computed == 1 and summary.failed == 0
+    rows = load_results(out)
+    assert sorted(r["run_id"] for r in rows) == sorted(r.run_id for r in study.runs())
+    assert {r["status"] for r in rows} == {"ok"}
