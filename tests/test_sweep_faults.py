@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import os
 import resource
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -161,3 +163,30 @@ def test_a_run_whose_worker_is_killed_is_retried_by_the_resume(tmp_path):
     rows = load_results(out)
     assert sorted(r["run_id"] for r in rows) == sorted(r.run_id for r in study.runs())
     assert {r["status"] for r in rows} == {"ok"}
+
+
+def test_ray_starts_its_own_instance_and_sigterm_exits_143_with_the_resume_line(tmp_path):
+    """Ray's temporary folder names a cluster that is gone (as an old ``ray start`` leaves
+    /tmp/ray/ray_current_cluster): plain --ray still starts a local instance; and SIGTERM ends
+    the sweep as without Ray (Ray's own SIGTERM handler would exit with 15)."""
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'mjrft[ray]')")
+    # Ray's folder here, not /tmp/ray: short, since Ray's sockets live under it (108 bytes max).
+    ray_tmp = Path(tempfile.mkdtemp(prefix="mjrft-ray-", dir="/tmp"))
+    try:
+        (ray_tmp / "ray").mkdir()
+        (ray_tmp / "ray" / "ray_current_cluster").write_text("127.0.0.1:1\n")  # nothing there
+        env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+        env["RAY_TMPDIR"] = str(ray_tmp)
+        path = plate_study(tmp_path, duration=3.0, pitches=(0, 5, 10, 15))  # 16 runs of ~0.2 s
+        out = tmp_path / "out"
+        cmd = sweep_cmd(path, out, "--ray", "--workers", "1")
+        pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE, "text": True}
+        proc = subprocess.Popen(cmd, env=env, **pipes)
+        _wait_for_rows(out / RESULTS_CSV, proc, 2, timeout=180)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        shutil.rmtree(ray_tmp, ignore_errors=True)
+    assert proc.returncode == cli.EXIT_TERMINATED, err
+    assert "terminated after" in err and f"--out {out} --resume --workers 1 --ray local" in err
+    assert 2 <= len(whole_rows(out)) < 16
