@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from mjrft.sweep.errors import FolderLocked, StudyError, SweepStopped
-from mjrft.sweep.study import Study
+from mjrft.sweep.study import RESERVED, Study
 
 RESULTS_CSV = "results.csv"
 STUDY_JSON = "study.json"
@@ -32,8 +32,7 @@ LOCK_FILE = ".lock"
 STATUS_OK, STATUS_FAILED, STATUS_RETRY = "ok", "failed", "retry"
 #: Columns after the metrics: the largest Froude number v^2/(g L) of a body in the medium and
 #: whether it stayed <= 1 (``mjrft.app.regime``), then the run's outcome and provenance.
-TAIL_COLUMNS = ("max_froude", "quasi_static", "status", "error", "warnings", "wall_s", "seed",
-                "versions")  # fmt: skip
+TAIL_COLUMNS = RESERVED[1:]
 
 
 def columns(study: Study) -> list[str]:

@@ -42,6 +42,9 @@ SAMPLINGS = ("grid", "random")
 #: minutes) take hours to days even on many cores: a larger count is almost always a range whose
 #: step is far too fine.
 MAX_RUNS = 1_000_000
+#: Columns of the results table besides the parameters and metrics (``results.columns``).
+RESERVED = ("run_id", "max_froude", "quasi_static", "status", "error", "warnings", "wall_s",
+            "seed", "versions")  # fmt: skip
 #: Significant digits ranges are rounded to (so a step of 0.1 gives 0.3, not 0.30000000000000004).
 RANGE_DIGITS = 15
 
@@ -422,6 +425,16 @@ def _validate(study: Study, where: str) -> None:
     clash = set(names) & {m.name for m in study.metrics}
     if clash:
         raise StudyError(f"{where}: {sorted(clash)[0]!r} is both a parameter and a metric")
+    taken = sorted((set(names) | {m.name for m in study.metrics}) & set(RESERVED))
+    if taken:
+        raise StudyError(
+            f"{where}: {taken[0]!r} names a column of the results table; parameters and metrics "
+            f"take other names than {', '.join(RESERVED)}"
+        )
+    paths.check_exclusive(
+        [(f"[set] {t.path!r}", t) for t, _ in study.settings]
+        + [(f"parameter {p.name!r}", t) for p in study.parameters for t in p.targets]
+    )
     for target, value in study.settings:
         if isinstance(value, dict):
             unknown = expressions.names(value["expr"], where) - set(names)
