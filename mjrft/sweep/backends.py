@@ -145,7 +145,7 @@ def _died(study: Study, run: RunSpec, error: str, status: str = STATUS_RETRY) ->
     outside the run), or Ray failed it otherwise."""
     return {
         "run_id": run.run_id, **run.values, **{m.name: float("nan") for m in study.metrics},
-        "max_froude": float("nan"), "quasi_static": "", "status": status, "error": error,
+        "max_froude": float("nan"), "quasi_static": None, "status": status, "error": error,
         "warnings": "", "wall_s": float("nan"), "seed": run.seed, "versions": versions(),
     }  # fmt: skip
 

@@ -85,7 +85,7 @@ def execute(
         **run.values,
         **metrics,
         "max_froude": largest,
-        "quasi_static": "" if math.isnan(largest) else str(largest <= FROUDE_QUASI_STATIC).lower(),
+        "quasi_static": None if math.isnan(largest) else largest <= FROUDE_QUASI_STATIC,
         "status": status,
         "error": error,
         "warnings": _warnings(caught),
@@ -173,7 +173,10 @@ def _simulate(
     # Without a time series the run records only its first and last rows.
     every = study.record_every if rec is not None else 1 << 62
     every_s = report_every if report_every is not None else study.duration / 10
-    observer = probe if report is None else _reporting(probe, model, report, every_s)
+    observer = probe
+    if report is not None:
+        last = simulate.step_count(study.duration, model.opt.timestep)
+        observer = _reporting(probe, model, report, every_s, last)
     try:
         data, rec = simulate.run(
             model, study.duration, fld=fld, observer=observer, recording=rec,
@@ -203,17 +206,17 @@ def _finish_file(sink: Any, tmp: Path, final: Path) -> None:
 
 
 def _reporting(
-    probe: Probe, model: mujoco.MjModel, report: Report, every_s: float
+    probe: Probe, model: mujoco.MjModel, report: Report, every_s: float, last: int
 ) -> Callable[[int, float, mujoco.MjData], None]:
     """The probe as the run's observer, calling ``report(t, probe.partial(data))`` every
-    `every_s` simulated seconds."""
+    `every_s` simulated seconds before the final state (step `last`: the run's own result)."""
     if not every_s > 0:
         raise StudyError(f"report_every = {every_s}: need a time > 0 [s]")
     k = max(1, round(every_s / float(model.opt.timestep)))
 
     def observe(step: int, t: float, data: mujoco.MjData) -> None:
         probe(step, t, data)
-        if step > 0 and step % k == 0:
+        if 0 < step < last and step % k == 0:
             try:
                 report(t, probe.partial(data))
             except BaseException as exc:

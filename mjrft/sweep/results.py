@@ -42,8 +42,12 @@ def columns(study: Study) -> list[str]:
 
 
 def cell(value: Any) -> str:
-    """A value as written in the table: floats exactly (shortest round-trip repr), NaN as an
-    empty cell."""
+    """A value as written in the table: floats exactly (shortest round-trip repr), NaN and None
+    as an empty cell, booleans as true and false."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, float):
         return "" if math.isnan(value) else repr(value)
     return str(value)
