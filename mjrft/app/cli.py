@@ -635,103 +635,17 @@ def _add_sweep(sub) -> None:
     s.set_defaults(func=_sweep)
 
 
-class _SweepProgress:
-    """``run_study``'s progress on stderr as a tqdm bar (runs done, rate, ETA), and each failed
-    run's error on a line of its own."""
-
-    def __init__(self, name: str) -> None:
-        self.name, self.done, self.total, self.bar = name, 0, 0, None
-
-    def __call__(self, done: int, total: int, row: dict | None) -> None:
-        from tqdm import tqdm
-
-        self.done, self.total = done, total
-        if row is None:
-            tty = sys.stderr.isatty()
-            self.bar = tqdm(
-                total=total, desc=f"mjrft sweep {self.name}", unit="run", file=sys.stderr,
-                dynamic_ncols=True, mininterval=0.2 if tty else 30.0, smoothing=0.1,
-            )  # fmt: skip
-            return
-        if row["status"] != "ok":
-            self.bar.write(f"  run {row['run_id']} {row['status']}: {row['error']}", sys.stderr)
-        self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+#: The handler of ``mjrft sweep``: it lives in the sweep layer (``mjrft.sweep``, which runs its
+#: simulations through this layer), so it is named here, as console_scripts name entry points,
+#: and imported only when the command runs: the app layer imports nothing of mjrft.sweep.
+SWEEP_COMMAND = "mjrft.sweep.command:main"
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    import shlex
+    import importlib
 
-    from mjrft import sweep
-
-    study = sweep.Study.load(args.study)
-    out = Path(args.out)
-    if args.plots_only:
-        sweep.check_same_study(out, study)
-        for path in sweep.plot_study(study, out):
-            print(f"  {path}")
-        return 0
-    progress = _SweepProgress(study.name)
-    address = None if args.ray in (None, RAY_LOCAL) else args.ray
-    again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
-    again += ["--workers", str(args.workers)] if args.workers else []
-    again += ["--ray", args.ray] if args.ray else []
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        summary = sweep.run_study(
-            study, out, workers=args.workers, backend="ray" if args.ray else "local",
-            address=address, resume=args.resume, progress=progress,
-        )  # fmt: skip
-    except (KeyboardInterrupt, sweep.SweepStopped) as exc:
-        progress.close()
-        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        if isinstance(exc, sweep.SweepStopped):
-            how = f"stopped ({exc})"
-        print(
-            f"\nmjrft sweep: {how} after {progress.done} of {progress.total} runs; every finished "
-            f"run is in {out / 'results.csv'}; resume with: {shlex.join(again)}",
-            file=sys.stderr,
-        )
-        if isinstance(exc, sweep.SweepStopped):
-            return EXIT_SWEEP_STOPPED
-        return EXIT_TERMINATED if how == "terminated" else EXIT_INTERRUPTED
-    finally:
-        progress.close()
-        signal.signal(signal.SIGTERM, previous)
-    return _sweep_report(study.name, summary, time.perf_counter() - args.started[0], again)
-
-
-def _sweep_report(name: str, summary, elapsed: float, again: list[str]) -> int:
-    """Print what a finished sweep did, its warnings once, and its failed runs; the exit code."""
-    import shlex
-
-    before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
-    print(
-        f"mjrft sweep {name}: {summary.computed} runs computed ({summary.failed} failed, "
-        f"see the error column), {summary.skipped} already in the table{before}, "
-        f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
-        f"{summary.table}"
-    )
-    for line in summary.warning_lines():
-        print(f"mjrft sweep: warning: {line} (each run's: the warnings column)", file=sys.stderr)
-    failed = summary.failed + summary.failed_before
-    if summary.retry:
-        print(
-            f"mjrft sweep: {summary.retry} runs did not finish for a reason outside them (status "
-            f"retry); run them again with: {shlex.join(again)}",
-            file=sys.stderr,
-        )
-    if failed:
-        print(
-            f"mjrft sweep: {failed} of {summary.total} runs failed; their errors are in the "
-            f"error column of {summary.table}",
-            file=sys.stderr,
-        )
-        return EXIT_RUNS_FAILED
-    return 0
+    module, _, name = SWEEP_COMMAND.partition(":")
+    return getattr(importlib.import_module(module), name)(args)
 
 
 def _add_fit(sub) -> None:
