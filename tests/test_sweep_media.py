@@ -118,3 +118,24 @@ values = [0.011, 0.08, 0.09]""",
     assert "warning: QuasiStaticWarning in 2 of 3 runs; the first: body 'ball'" in err
     assert "regime.py" not in err  # no internal source line
     assert not math.isnan(rows[0.08]["max_froude"])
+
+
+def test_a_run_keeps_its_first_ten_distinct_warnings_and_counts_the_rest(tmp_path):
+    """A metric that raises 500 messages twice each: the row keeps the first ten and counts the
+    raises of the others, so the run's memory and the row's length stay bounded."""
+    (tmp_path / "noisy.py").write_text(
+        "import warnings\n"
+        "def depth(outcome):\n"
+        "    for i in range(1000):\n"
+        "        warnings.warn(f'warning {i % 500}', UserWarning)\n"
+        "    return outcome.metrics['depth_m']\n"
+    )
+    path = study(tmp_path, PRESET, '[parameters.z]\npath = "body.ball.pos[2]"\nvalues = [0.011]',
+                 duration=0.01)  # fmt: skip
+    path.write_text(path.read_text() + 'noisy = { kind = "custom", function = "noisy.py:depth" }\n')
+    summary = run_study(Study.load(path), tmp_path / "out", backend="serial", plots=False)
+    (row,) = load_results(tmp_path / "out")
+    kept = [f"UserWarning: warning {i}" for i in range(10)]
+    others = 1000 - 2 * len(kept)  # each message is raised twice (i % 500)
+    assert row["warnings"] == " | ".join([*kept, f"and {others} more"])
+    assert summary.warning_lines() == ["UserWarning in 1 of 1 runs; the first: warning 0"]

@@ -68,8 +68,10 @@ def execute(
     np.random.seed(run.seed)  # noqa: NPY002
     random.seed(run.seed)
     status, error, froude = STATUS_OK, "", {}
-    with warnings.catch_warnings(record=True) as caught:
+    caught = _Warnings()
+    with warnings.catch_warnings():
         warnings.simplefilter("always")
+        warnings.showwarning = caught.add
         try:
             metrics, froude = _simulate(study, run, _path(out), report, report_every)
         except _Stopped as stop:
@@ -88,7 +90,7 @@ def execute(
         "quasi_static": None if math.isnan(largest) else largest <= FROUDE_QUASI_STATIC,
         "status": status,
         "error": error,
-        "warnings": _warnings(caught),
+        "warnings": caught.text(),
         "wall_s": time.perf_counter() - t0,
         "seed": run.seed,
         "versions": versions(),
@@ -106,10 +108,29 @@ def _path(out: str | Path | None) -> Path | None:
     return None if out is None else Path(out)
 
 
-def _warnings(caught: list[warnings.WarningMessage]) -> str:
-    """The distinct warnings a run raised, "Category: message" on one line."""
-    seen = dict.fromkeys(f"{w.category.__name__}: {w.message}" for w in caught)
-    return one_line(" | ".join(seen))
+class _Warnings:
+    """The distinct warnings a run raises ("Category: message"), kept instead of shown: at most
+    ``MAX`` of them, then a count of the others (a warning raised every step stays one entry)."""
+
+    MAX = 10
+
+    def __init__(self) -> None:
+        self.seen: dict[str, None] = {}
+        self.more = 0
+
+    def add(self, message: Warning | str, category: type[Warning], *args: Any, **kw: Any) -> None:
+        text = f"{category.__name__}: {message}"
+        if text in self.seen:
+            return
+        if len(self.seen) < self.MAX:
+            self.seen[text] = None
+        else:
+            self.more += 1
+
+    def text(self) -> str:
+        """The warnings on one line, `` | ``-separated."""
+        more = [f"and {self.more} more"] if self.more else []
+        return one_line(" | ".join([*self.seen, *more]))
 
 
 class _Stopped(Exception):

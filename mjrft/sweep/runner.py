@@ -96,7 +96,7 @@ def run_study(
         summary.computed += 1
         summary.failed += row["status"] != STATUS_OK
         summary.retry += row["status"] == STATUS_RETRY
-        for text in filter(None, row.get("warnings", "").split(" | ")):
+        for text in (w for w in row.get("warnings", "").split(" | ") if ": " in w):
             summary.warnings.setdefault(text, []).append(row["run_id"])
         if progress is not None:
             progress(summary.computed, len(pending), row)
