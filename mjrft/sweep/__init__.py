@@ -5,7 +5,8 @@ Modules: ``study`` (the description, its runs), ``paths`` (where values go in th
 ``expressions`` (values derived from parameters), ``metrics`` (what a run records), ``executor``
 (one run), ``backends`` (serial, local processes, Ray), ``results`` (the folder and its table),
 ``runner`` (``run_study``), ``single`` (``run_one``, ``evaluate``: one parameter set),
-``tune`` and ``optuna`` (a study under Ray Tune or Optuna), ``plots``.
+``tune`` and ``optuna`` (a study under Ray Tune or Optuna), ``plots``, ``command`` (``mjrft
+sweep``).
 
     from mjrft.sweep import Study, run_study
     study = Study.load("studies/root_circumnutation.toml")

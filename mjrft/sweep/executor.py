@@ -20,6 +20,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from mjrft.app.regime import FROUDE_QUASI_STATIC
 from mjrft.sweep import callables
 from mjrft.sweep.errors import StudyError, one_line
 from mjrft.sweep.metrics import Outcome, Probe
@@ -32,9 +33,6 @@ __all__ = ["STATUS_FAILED", "STATUS_OK", "STATUS_RETRY", "execute", "stops_the_s
 #: large for the process's limit, read-only or failing storage): the run is "retry" and the sweep
 #: stops, since every later run would fail alike.
 STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO})
-#: Froude number above which a run has left the quasi-static regime (``mjrft.app.regime``'s
-#: FROUDE_QUASI_STATIC, here so that this module's import stays light).
-FROUDE_QUASI_STATIC = 1.0
 #: report(time, metrics): a run's built-in metrics so far, every ``report_every`` seconds.
 Report = Callable[[float, dict[str, float]], None]
 #: Folder of per-run time series in a results folder (``timeseries = true``).

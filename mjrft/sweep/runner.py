@@ -130,7 +130,15 @@ def _remove_partial_series(out: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _run_backend(study, pending, out, on_row, backend, workers, address) -> None:
+def _run_backend(
+    study: Study,
+    pending: list[RunSpec],
+    out: Path,
+    on_row: Callable[[dict], None],
+    backend: str,
+    workers: int | None,
+    address: str | None,
+) -> None:
     if backend == "serial":
         backends.serial(study, pending, out, on_row)
     elif backend == "local":
