@@ -190,3 +190,28 @@ def test_ray_starts_its_own_instance_and_sigterm_exits_143_with_the_resume_line(
     assert proc.returncode == cli.EXIT_TERMINATED, err
     assert "terminated after" in err and f"--out {out} --resume --workers 1 --ray local" in err
     assert 2 <= len(whole_rows(out)) < 16
+
+
+def test_a_resume_cleans_the_table_of_cut_repeated_and_retry_rows_keeping_the_rest(tmp_path):
+    """A folder written without a lock (two sweeps at once) or left by a kill: the resume keeps
+    one whole row per run, byte for byte, reruns the "retry" run, and runs nothing twice."""
+    path = drop_study(tmp_path)
+    study, out = Study.load(path), tmp_path / "out"
+    run_study(study, out, backend="serial", plots=False)
+    text, cells = (out / RESULTS_CSV).read_text(), table(out, study)
+    header, *rows = text.splitlines(keepends=True)
+    status = header.split(",").index("status")
+    retry = rows[3].split(",")
+    retry[status] = "retry"
+    dirty = [*rows[:3], ",".join(retry), *rows[3:], rows[0], rows[1], rows[2][:40]]
+    (out / RESULTS_CSV).write_text(header + "".join(dirty))
+    summary = run_study(study, out, backend="serial", resume=True, plots=False)
+    assert summary.skipped == 8 and summary.computed == 0  # every run has an ok row
+    assert (out / RESULTS_CSV).read_text() == text
+    # Without its ok row, the retry row's run runs again, once.
+    (out / RESULTS_CSV).write_text(header + "".join([*rows[:3], ",".join(retry), *rows[4:]]))
+    summary = run_study(study, out, backend="serial", resume=True, plots=False)
+    assert summary.skipped == 7 and summary.computed == 1
+    after = (out / RESULTS_CSV).read_text().splitlines(keepends=True)
+    assert after[:8] == [header, *rows[:3], *rows[4:]] and len(after) == 9
+    assert table(out, study) == cells  # the rerun gives the same metrics, bit for bit
