@@ -5,7 +5,9 @@ scheduler, a restored experiment) on a local Ray instance."""
 from __future__ import annotations
 
 import math
+import os
 import shutil
+import signal
 import tempfile
 from pathlib import Path
 
@@ -117,6 +119,20 @@ def test_a_failed_run_is_a_failed_optuna_trial_and_the_search_goes_on(tmp_path):
     assert all("size 0 must be positive" in t.user_attrs["error"] for t in search.trials)
 
 
+def _interrupt_after(tune, n: int):
+    """A Tune callback that sends this process SIGINT (Ctrl-C) once `n` trials have finished."""
+
+    class Interrupt(tune.Callback):
+        done = 0
+
+        def on_trial_complete(self, iteration, trials, trial, **info) -> None:
+            self.done += 1
+            if self.done == n:
+                os.kill(os.getpid(), signal.SIGINT)
+
+    return Interrupt()
+
+
 def test_ray_tune_with_a_search_algorithm_and_asha_and_a_restored_experiment(drop, tmp_path):
     ray = pytest.importorskip("ray")
     pytest.importorskip("optuna")
@@ -149,11 +165,24 @@ def test_ray_tune_with_a_search_algorithm_and_asha_and_a_restored_experiment(dro
         best = results.get_best_result()
         assert best.metrics[SIM_TIME] == drop.duration
         assert best.metrics["fz_peak_N"] == evaluate(drop, best.config)["fz_peak_N"]
-        assert tune.Tuner.can_restore(str(tmp_path / "drop"))
-        restored = tune.Tuner.restore(str(tmp_path / "drop"), trainable(drop)).get_results()
-        assert sorted(r.metrics["fz_peak_N"] for r in restored) == sorted(
-            r.metrics["fz_peak_N"] for r in results
-        )
+        # An experiment interrupted (SIGINT after two trials, as Ctrl-C) resumes from Tune's
+        # checkpoint of it: the finished trials are kept, the rest run.
+        interrupted = tune.Tuner(
+            trainable(drop),
+            param_space=search_space(drop),
+            tune_config=tune.TuneConfig(metric="fz_peak_N", mode="max", num_samples=4,
+                                        max_concurrent_trials=1),
+            run_config=tune.RunConfig(storage_path=str(tmp_path), name="cut", verbose=0,
+                                      callbacks=[_interrupt_after(tune, 2)]),
+        ).fit()  # fmt: skip
+        first = sorted(r.metrics["run_id"] for r in interrupted)
+        assert len(first) == 2 and tune.Tuner.can_restore(str(tmp_path / "cut"))
+        resumed = tune.Tuner.restore(str(tmp_path / "cut"), trainable(drop),
+                                     resume_unfinished=True).fit()  # fmt: skip
+        assert resumed.num_errors == 0 and len(resumed) > 2
+        done = {r.metrics["run_id"]: r.metrics["fz_peak_N"] for r in resumed}
+        assert set(first) <= set(done)
+        assert all(r.metrics[SIM_TIME] == drop.duration for r in resumed)
     finally:
         ray.shutdown()
         shutil.rmtree(short, ignore_errors=True)
