@@ -215,3 +215,17 @@ def test_a_resume_cleans_the_table_of_cut_repeated_and_retry_rows_keeping_the_re
     after = (out / RESULTS_CSV).read_text().splitlines(keepends=True)
     assert after[:8] == [header, *rows[:3], *rows[4:]] and len(after) == 9
     assert table(out, study) == cells  # the rerun gives the same metrics, bit for bit
+
+
+def test_a_filesystem_without_locks_gets_a_warning_and_the_sweep_runs(tmp_path, monkeypatch):
+    import errno
+    import fcntl
+
+    def no_locks(fd, op):
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(fcntl, "flock", no_locks)
+    study = Study.load(drop_study(tmp_path))
+    with pytest.warns(RuntimeWarning, match=r"No locks available \(ENOLCK\).*would not be refused"):
+        summary = run_study(study, tmp_path / "out", backend="serial", plots=False)
+    assert summary.computed == 8 and summary.failed == 0

@@ -14,6 +14,7 @@ import math
 import os
 import socket
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -188,6 +189,14 @@ def lock_folder(out: Path) -> int:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:
         holder = os.pread(fd, 4096, 0).decode(errors="replace").strip()
+        if exc.errno in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
+            warnings.warn(
+                f"cannot lock {str(out / LOCK_FILE)!r}: {describe(exc)} (the filesystem has no "
+                "locks): a second sweep writing this folder at once would not be refused",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+            return fd
         os.close(fd)
         if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
             raise StudyError(f"cannot lock {str(out / LOCK_FILE)!r}: {describe(exc)}") from None
