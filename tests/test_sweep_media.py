@@ -115,7 +115,7 @@ values = [0.011, 0.08, 0.09]""",
     assert rows[0.011]["warnings"] == ""
     err = capsys.readouterr().err
     assert err.count("QuasiStaticWarning") == 1, err  # one summary line, no line per run
-    assert "warning: QuasiStaticWarning in 2 of 3 runs; the first: body 'ball'" in err
+    assert "warning: QuasiStaticWarning in 2 of 3 runs (the first: body 'ball'" in err
     assert "regime.py" not in err  # no internal source line
     assert not math.isnan(rows[0.08]["max_froude"])
 
@@ -139,3 +139,14 @@ def test_a_run_keeps_its_first_ten_distinct_warnings_and_counts_the_rest(tmp_pat
     others = 1000 - 2 * len(kept)  # each message is raised twice (i % 500)
     assert row["warnings"] == " | ".join([*kept, f"and {others} more"])
     assert summary.warning_lines() == ["UserWarning in 1 of 1 runs; the first: warning 0"]
+
+
+def test_a_warning_of_the_study_is_shown_once_before_the_runs_and_counted_after(tmp_path, capsys):
+    path = study(tmp_path, PRESET, '[parameters.z]\npath = "body.ball.pos[2]"\nvalues = [0.011, '
+                 '0.012]', duration=0.01, extra='[set]\n"mjrft:repose" = 30')  # fmt: skip
+    assert cli.main(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "2"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("does nothing: there is no deforming ground") == 1, err
+    assert "mjrft sweep: warning: SceneWarning: <numeric name='mjrft:repose'> does nothing" in err
+    assert "SceneWarning in 2 of 2 runs (above)" in err
+    assert ".py:" not in err  # no source line

@@ -9,6 +9,7 @@ import shlex
 import signal
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from mjrft.app import cli
@@ -48,7 +49,24 @@ class _SweepProgress:
 
 def main(args: argparse.Namespace) -> int:
     """Run ``mjrft sweep`` with its parsed arguments (``mjrft.app.cli``'s parser); returns the
-    exit code."""
+    exit code. A warning raised in this process (loading the study, checking its first run) is
+    printed once, as ``mjrft sweep: warning: Category: message``, without a source line; the
+    runs' own are summarised at the end."""
+    shown: set[str] = set()
+
+    def show(message, category, *args, **kwargs) -> None:
+        text = f"{category.__name__}: {message}"
+        if text not in shown:
+            shown.add(text)
+            print(f"mjrft sweep: warning: {text}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = show
+        return _main(args, shown)
+
+
+def _main(args: argparse.Namespace, shown: set[str]) -> int:
     from mjrft import sweep
 
     study = sweep.Study.load(args.study)
@@ -85,11 +103,15 @@ def main(args: argparse.Namespace) -> int:
     finally:
         progress.close()
         signal.signal(signal.SIGTERM, previous)
-    return _report(study.name, summary, time.perf_counter() - args.started[0], again)
+    elapsed = time.perf_counter() - args.started[0]
+    return _report(study.name, summary, elapsed, again, shown)
 
 
-def _report(name: str, summary: SweepSummary, elapsed: float, again: list[str]) -> int:
-    """Print what a finished sweep did, its warnings once, and its failed runs; the exit code."""
+def _report(
+    name: str, summary: SweepSummary, elapsed: float, again: list[str], shown: set[str]
+) -> int:
+    """Print what a finished sweep did, its runs' warnings once per category (a message already
+    `shown` is not repeated), and its failed runs; the exit code."""
     before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
     print(
         f"mjrft sweep {name}: {summary.computed} runs computed ({summary.failed} failed, "
@@ -97,8 +119,13 @@ def _report(name: str, summary: SweepSummary, elapsed: float, again: list[str]) 
         f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
         f"{summary.table}"
     )
-    for line in summary.warning_lines():
-        print(f"mjrft sweep: warning: {line} (each run's: the warnings column)", file=sys.stderr)
+    for category, n, first in summary.warning_groups():
+        what = "(above)" if f"{category}: {first}" in shown else f"(the first: {first})"
+        print(
+            f"mjrft sweep: warning: {category} in {n} of {summary.computed} runs {what}; each "
+            "run's are in the warnings column",
+            file=sys.stderr,
+        )
     failed = summary.failed + summary.failed_before
     if summary.retry:
         print(

@@ -36,16 +36,21 @@ class SweepSummary:
     plots: list[Path] = field(default_factory=list)
     warnings: dict[str, list[str]] = field(default_factory=dict)
 
-    def warning_lines(self) -> list[str]:
-        """One line per category of warning: how many runs raised it and the first message, for
-        a summary printed once per sweep (each run's own are in its warnings column)."""
+    def warning_groups(self) -> list[tuple[str, int, str]]:
+        """(category, how many runs raised it, the first message) per category of warning the
+        runs computed now raised (each run's own are in its warnings column)."""
         groups: dict[str, tuple[str, set[str]]] = {}
         for text, run_ids in self.warnings.items():
-            _, ids = groups.setdefault(text.split(":")[0], (text, set()))
-            ids.update(run_ids)
+            category, message = text.split(": ", 1)
+            groups.setdefault(category, (message, set()))[1].update(run_ids)
+        return [(c, len(ids), first) for c, (first, ids) in groups.items()]
+
+    def warning_lines(self) -> list[str]:
+        """One line per category of warning (``warning_groups``), for a summary printed once
+        per sweep."""
         return [
-            f"{name} in {len(ids)} of {self.computed} runs; the first: {first.split(': ', 1)[1]}"
-            for name, (first, ids) in groups.items()
+            f"{category} in {n} of {self.computed} runs; the first: {first}"
+            for category, n, first in self.warning_groups()
         ]
 
 
