@@ -180,8 +180,11 @@ def ray_backend(
                 for ref in done:
                     on_row(_ray_row(ray, study, refs.pop(ref), ref))
         except BaseException:
-            for ref in refs:
-                ray.cancel(ref, force=True)
+            if not started:  # a new local instance ends with its tasks at ray.shutdown()
+                for ref in refs:
+                    # Not force=True: forcing a task that is finishing aborts the driver (Ray
+                    # 2.60, task_manager.cc "Tried to complete task that was not pending").
+                    ray.cancel(ref)
             raise
     finally:
         if started:
