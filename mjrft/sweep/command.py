@@ -32,6 +32,8 @@ class _SweepProgress:
 
         self.done, self.total = done, total
         if row is None:
+            if not total:
+                return  # nothing to run: no bar
             tty = sys.stderr.isatty()
             self.bar = tqdm(
                 total=total, desc=f"mjrft sweep {self.name}", unit="run", file=sys.stderr,

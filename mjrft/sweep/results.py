@@ -147,7 +147,12 @@ class ResultsTable:
         self.done.add(row["run_id"])
 
     def close(self) -> None:
-        """Close the file and release the folder (idempotent)."""
+        """Close the file and release the folder, its lock file emptied (idempotent)."""
+        if self._lock >= 0:
+            try:
+                os.ftruncate(self._lock, 0)  # names no one once released
+            except OSError:
+                pass
         for name in ("_fd", "_lock"):
             fd = getattr(self, name)
             if fd >= 0:
