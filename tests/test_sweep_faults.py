@@ -18,7 +18,7 @@ import pytest
 from test_sweep import _wait_for_rows, plate_study, table
 
 from mjrft.app import cli
-from mjrft.sweep import FolderLocked, Study, load_results, run_study
+from mjrft.sweep import FolderLocked, Study, StudyError, load_results, run_study
 from mjrft.sweep.results import LOCK_FILE, RESULTS_CSV
 
 # The sphere drop, 8 runs of 20 steps: fast, and each run's time series (timeseries = true) is
@@ -229,3 +229,17 @@ def test_a_filesystem_without_locks_gets_a_warning_and_the_sweep_runs(tmp_path, 
     with pytest.warns(RuntimeWarning, match=r"No locks available \(ENOLCK\).*would not be refused"):
         summary = run_study(study, tmp_path / "out", backend="serial", plots=False)
     assert summary.computed == 8 and summary.failed == 0
+
+
+def test_a_ray_cluster_that_cannot_be_reached_is_named_in_a_study_error(tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'mjrft[ray]')")
+
+    def none_there(**kwargs):  # what ray.init raises for --ray auto with no cluster running
+        raise ConnectionError("Could not find any running Ray instance.")
+
+    monkeypatch.setattr(ray, "init", none_there)
+    study = Study.load(drop_study(tmp_path))
+    with pytest.raises(StudyError, match=r"cannot start or reach the Ray cluster at 'auto': "
+                       r"Could not find any running Ray instance\.; --ray HOST:PORT"):  # fmt: skip
+        run_study(study, tmp_path / "out", backend="ray", address="auto", plots=False)
+    assert not (tmp_path / "out").exists()  # nothing written: fix the address and run it again

@@ -150,19 +150,13 @@ def _died(study: Study, run: RunSpec, error: str, status: str = STATUS_RETRY) ->
     }  # fmt: skip
 
 
-def ray_backend(
-    study: Study,
-    runs: list[RunSpec],
-    out: Path,
-    on_row: OnRow,
-    workers: int | None,
-    address: str | None,
-) -> None:
-    """The runs as Ray tasks (one CPU each): on the Ray instance already initialised in this
-    process, else on the cluster at `address` ("auto": RAY_ADDRESS or the one ``ray start`` runs
-    here), else on a new local instance of `workers` CPUs (all cores by default), whatever an
-    earlier ``ray start`` left in Ray's temporary folder, shut down afterwards. Ray's SIGTERM
-    handler is not kept: this process's own handlers stay."""
+@contextlib.contextmanager
+def ray_session(workers: int | None, address: str | None) -> Iterator[bool]:
+    """Ray for a sweep: the instance already initialised in this process, else the cluster at
+    `address` ("auto": RAY_ADDRESS or the one ``ray start`` runs here), else a new local
+    instance of `workers` CPUs (all cores by default), whatever an earlier ``ray start`` left in
+    Ray's temporary folder; one this started is shut down at the end. Yields whether it started
+    one. Ray's SIGTERM handler is not kept: this process's own handlers stay."""
     try:
         import ray
     except ImportError:
@@ -171,25 +165,35 @@ def ray_backend(
     if started:
         init_ray(address, workers or cores())
     try:
-        task = ray.remote(num_cpus=1, max_retries=0)(execute)
-        shared = ray.put(study)
-        refs = {task.remote(shared, run, str(out)): run for run in runs}
-        try:
-            while refs:
-                done, _ = ray.wait(list(refs), num_returns=1, timeout=0.5)
-                for ref in done:
-                    on_row(_ray_row(ray, study, refs.pop(ref), ref))
-        except BaseException:
-            if not started:  # a new local instance ends with its tasks at ray.shutdown()
-                for ref in refs:
-                    # Not force=True: forcing a task that is finishing aborts the driver (Ray
-                    # 2.60, task_manager.cc "Tried to complete task that was not pending").
-                    ray.cancel(ref)
-            raise
+        yield started
     finally:
         if started:
             with _own_handlers():
                 ray.shutdown()
+
+
+def ray_backend(
+    study: Study, runs: list[RunSpec], out: Path, on_row: OnRow, own_instance: bool
+) -> None:
+    """The runs as Ray tasks (one CPU each) on the Ray this process is connected to
+    (``ray_session``); `own_instance`: a local one this sweep started, whose tasks end with it."""
+    import ray
+
+    task = ray.remote(num_cpus=1, max_retries=0)(execute)
+    shared = ray.put(study)
+    refs = {task.remote(shared, run, str(out)): run for run in runs}
+    try:
+        while refs:
+            done, _ = ray.wait(list(refs), num_returns=1, timeout=0.5)
+            for ref in done:
+                on_row(_ray_row(ray, study, refs.pop(ref), ref))
+    except BaseException:
+        if not own_instance:  # a new local instance ends with its tasks at ray.shutdown()
+            for ref in refs:
+                # Not force=True: forcing a task that is finishing aborts the driver (Ray
+                # 2.60, task_manager.cc "Tried to complete task that was not pending").
+                ray.cancel(ref)
+        raise
 
 
 def init_ray(address: str | None, cpus: int) -> None:
@@ -200,8 +204,16 @@ def init_ray(address: str | None, cpus: int) -> None:
     import ray
 
     kwargs = {"address": address} if address else {"address": "local", "num_cpus": cpus}
-    with _own_handlers():
-        ray.init(include_dashboard=False, log_to_driver=False, **kwargs)
+    try:
+        with _own_handlers():
+            ray.init(include_dashboard=False, log_to_driver=False, **kwargs)
+    except (ConnectionError, RuntimeError, ValueError) as exc:
+        where = f"the Ray cluster at {address!r}" if address else "a local Ray instance"
+        raise StudyError(
+            f"cannot start or reach {where}: {one_line(str(exc))}; --ray HOST:PORT names a "
+            "cluster's head, --ray auto the cluster `ray start` runs on this machine, --ray "
+            "alone starts a local instance"
+        ) from None
 
 
 @contextlib.contextmanager

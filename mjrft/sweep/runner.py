@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import signal
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -88,6 +90,32 @@ def run_study(
         raise StudyError(f"workers = {workers}: need at least 1")
     out = Path(out)
     check_loads(study)
+    session = (
+        backends.ray_session(workers, address) if backend == "ray" else contextlib.nullcontext()
+    )
+    with session as own_instance:  # Ray reached before the folder is written
+        backend_run = _backend(backend, workers, own_instance)
+        return _sweep(study, out, resume, plots, progress, backend_run)
+
+
+def _backend(backend: str, workers: int | None, own_instance: bool | None) -> Callable:
+    """The function ``run(study, runs, out, on_row)`` of `backend`."""
+    if backend == "serial":
+        return backends.serial
+    if backend == "local":
+        return functools.partial(backends.local, workers=workers or backends.cores())
+    return functools.partial(backends.ray_backend, own_instance=bool(own_instance))
+
+
+def _sweep(
+    study: Study,
+    out: Path,
+    resume: bool,
+    plots: bool,
+    progress: Progress | None,
+    backend_run: Callable[[Study, list[RunSpec], Path, Callable[[dict], None]], None],
+) -> SweepSummary:
+    """``run_study`` once its first run loads and its backend is ready."""
     table = ResultsTable.open(out, study, resume)
     runs = study.runs()
     pending = [r for r in runs if r.run_id not in table.done]
@@ -98,11 +126,7 @@ def run_study(
     def on_row(row: dict) -> None:
         with HeldSignals((signal.SIGINT, signal.SIGTERM)):  # a row is written whole or not
             table.append(row)
-        summary.computed += 1
-        summary.failed += row["status"] != STATUS_OK
-        summary.retry += row["status"] == STATUS_RETRY
-        for text in (w for w in row.get("warnings", "").split(" | ") if ": " in w):
-            summary.warnings.setdefault(text, []).append(row["run_id"])
+        _count(summary, row)
         if progress is not None:
             progress(summary.computed, len(pending), row)
         if stops_the_sweep(row):
@@ -116,13 +140,22 @@ def run_study(
         progress(0, len(pending), None)
     try:
         _remove_partial_series(out)
-        _run_backend(study, pending, out, on_row, backend, workers, address)
+        backend_run(study, pending, out, on_row)
         if plots:
             summary.plots = _plots(study, out)
     finally:
         _remove_partial_series(out)  # of runs stopped in flight: never recorded
         table.close()
     return summary
+
+
+def _count(summary: SweepSummary, row: dict) -> None:
+    """Add a finished run's row to the summary: its status and its warnings."""
+    summary.computed += 1
+    summary.failed += row["status"] != STATUS_OK
+    summary.retry += row["status"] == STATUS_RETRY
+    for text in (w for w in row.get("warnings", "").split(" | ") if ": " in w):
+        summary.warnings.setdefault(text, []).append(row["run_id"])
 
 
 def _remove_partial_series(out: Path) -> None:
@@ -133,23 +166,6 @@ def _remove_partial_series(out: Path) -> None:
 
     for tmp in (out / RUNS_DIR).glob(".*.csv.*.tmp"):
         tmp.unlink(missing_ok=True)
-
-
-def _run_backend(
-    study: Study,
-    pending: list[RunSpec],
-    out: Path,
-    on_row: Callable[[dict], None],
-    backend: str,
-    workers: int | None,
-    address: str | None,
-) -> None:
-    if backend == "serial":
-        backends.serial(study, pending, out, on_row)
-    elif backend == "local":
-        backends.local(study, pending, out, on_row, workers or backends.cores())
-    else:
-        backends.ray_backend(study, pending, out, on_row, workers, address)
 
 
 def _plots(study: Study, out: Path) -> list[Path]:
