@@ -2,14 +2,16 @@
 
 Run: python benchmarks/cli_startup.py
 Each command runs as `python -m mjrft.app.cli ...` in 5 fresh processes (after one untimed run
-that warms the file cache); prints the median per command and the modules of note (mujoco,
+that warms the file cache); prints the machine, its load average (other processes slow a start-up
+that is mostly reading files), the median per command and the modules of note (mujoco,
 matplotlib, rerun, dm_control, mjrft.sweep) that `mjrft --help` imports; writes
-benchmarks/results/cli_startup.csv.
+benchmarks/results/cli_startup.csv (command, median, the 1-minute load average when measured).
 """
 
 from __future__ import annotations
 
 import csv
+import os
 import statistics
 import subprocess
 import sys
@@ -50,19 +52,24 @@ def heavy_imports() -> list[str]:
 
 
 def main() -> None:
+    from mjrft.app.metadata import machine
+
+    m = machine()
+    print(f"{m.get('cpu', '?')}, {m.get('cpu_count', '?')} cores")
     rows = []
     for args in COMMANDS:
         wall(args)
         median = statistics.median(wall(args) for _ in range(REPEATS))
         command = "mjrft " + " ".join(args)
-        rows.append((command, median))
-        print(f"{command:28s} {median:6.3f} s")
+        load = os.getloadavg()[0]
+        rows.append((command, median, load))
+        print(f"{command:28s} {median:6.3f} s   (load average {load:.1f})")
     print(f"imported by `mjrft --help`: {', '.join(heavy_imports()) or 'none of ' + str(HEAVY)}")
     OUT.parent.mkdir(parents=True, exist_ok=True)
     with OUT.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["command", "median_s"])
-        w.writerows((c, f"{m:.4f}") for c, m in rows)
+        w.writerow(["command", "median_s", "load_average"])
+        w.writerows((c, f"{t:.4f}", f"{load:.2f}") for c, t, load in rows)
 
 
 if __name__ == "__main__":

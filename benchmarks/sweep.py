@@ -5,12 +5,15 @@ Run: python benchmarks/sweep.py [--repeats R] [--duration S] [--workers N] [--no
 1. A 16-run study of the root rig (studies/root_circumnutation.toml's tip angles 5-30 deg x
    nutation rates 0-30 deg/s, each run `--duration` simulated seconds, about 1.1 s of wall time
    at the default 16 s): a serial loop of ``mjrft.sweep.executor.execute`` in this process,
-   then ``run_study`` on the local backend (pool start-up included), `--repeats` pairs; and,
-   unless --no-ray, ``run_study`` on a new local Ray instance (`ray_init_s` is its
-   start, not included in `wall_s`).
+   ``run_study`` in this process (backend "serial": the loop plus the results folder, its lock
+   and a row written and fsync'ed per run), then ``run_study`` on the local backend (pool
+   start-up included), `--repeats` rounds; and, unless --no-ray, ``run_study`` on a new local
+   Ray instance (`ray_init_s` is its start, not included in `wall_s`).
 2. Per-run overhead: a 32-run study of runs that do almost nothing (models/sphere_drop.xml, one
    step each) on each backend: overhead per run = wall x workers / runs - the serial time per
-   run (the CPU-seconds a run costs beyond its own work).
+   run (the CPU-seconds a run costs beyond its own work); and the CPU time of this process and
+   its children per run (`cpu_s`), which other processes on a shared machine disturb less than
+   the wall time.
 
 On a shared machine every measurement also records the CPU the machine spent outside this
 process and its children (`others_cores`, from /proc/stat; for Ray its own worker processes
@@ -77,7 +80,8 @@ class Meter:
 
     def __exit__(self, *exc: object) -> None:
         self.wall = time.perf_counter() - self.t0
-        others = self._busy() - self.busy0 - (self._own() - self.own0)
+        self.cpu = self._own() - self.own0
+        others = self._busy() - self.busy0 - self.cpu
         self.others = max(0.0, others) / self.wall
 
 
@@ -89,7 +93,7 @@ def measure(study: Study, backend: str, workers: int) -> dict:
         import ray
 
         t0 = time.perf_counter()
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False)
         row["ray_init_s"] = time.perf_counter() - t0
     first = []
     t0 = time.perf_counter()
@@ -105,19 +109,20 @@ def measure(study: Study, backend: str, workers: int) -> dict:
                     execute(study, run)
             else:
                 t0 = time.perf_counter()
-                run_study(study, out, workers, backend, plots=False, progress=progress)
+                how = "serial" if backend == "table" else backend
+                run_study(study, out / "o", workers, how, plots=False, progress=progress)
     finally:
         shutil.rmtree(out)
         if backend == "ray":
             ray.shutdown()
-    return row | {"wall_s": m.wall, "first_row_s": first[0] if first else None,
+    return row | {"wall_s": m.wall, "cpu_s": m.cpu, "first_row_s": first[0] if first else None,
                   "others_cores": m.others}  # fmt: skip
 
 
 def summary(rows: list[dict], n: int, workers: int) -> dict:
     """Medians per backend over the clean measurements (all, if none is clean)."""
     out = {}
-    for backend in ("serial", "local", "ray"):
+    for backend in ("serial", "table", "local", "ray"):
         mine = [r for r in rows if r["backend"] == backend]
         clean = [r for r in mine if r["others_cores"] < QUIET]
         if mine:
@@ -125,9 +130,12 @@ def summary(rows: list[dict], n: int, workers: int) -> dict:
             wall = statistics.median(r["wall_s"] for r in used)
             steady = [r["wall_s"] - r["first_row_s"] for r in used if r["first_row_s"]]
             out[backend] = (wall, statistics.median(steady) if steady else wall, len(clean), mine)
+            cpu = statistics.median(r["cpu_s"] for r in used)
+            print(f"  {backend:6s} CPU {1e3 * cpu / n:7.2f} ms per run (this process and its "
+                  "children; Ray's workers are not its children)")  # fmt: skip
     serial = out["serial"][0]
     for backend, (wall, steady, k, mine) in out.items():
-        cores = 1 if backend == "serial" else workers
+        cores = workers if backend in ("local", "ray") else 1
         overhead = wall * cores / n - serial / n
         after_first = steady * cores / (n - 1) - serial / n  # start-up left out
         print(
@@ -157,7 +165,7 @@ def main() -> None:
             continue
         mine = []
         for i in range(args.repeats):
-            for backend in ("serial", "local") + (() if args.no_ray else ("ray",)):
+            for backend in ("serial", "table", "local") + (() if args.no_ray else ("ray",)):
                 r = {"study": name, "runs": len(study.runs()), "repeat": i}
                 r |= measure(study, backend, args.workers)
                 print("  ", {k: round(v, 4) if isinstance(v, float) else v for k, v in r.items()})

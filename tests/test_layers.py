@@ -2,6 +2,7 @@
 from a layer above its own."""
 
 import ast
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -10,12 +11,12 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "mjrft"
 # Each layer may import from itself and the layers listed (mjrft's own modules only).
-# mjrft.sweep is a role folder of the app layer: the CLI (app) runs sweeps, sweeps run
-# simulations (app).
+# mjrft.sweep sits above the app layer: sweeps run simulations (app); the CLI names the sweep
+# command's handler without importing it (mjrft.app.cli.SWEEP_COMMAND).
 ALLOWED = {
     "core": {"core"},
     "field": {"core", "field"},
-    "app": {"core", "field", "app", "sweep"},
+    "app": {"core", "field", "app"},
     "sweep": {"core", "field", "app", "sweep"},
     # mjrft.warp (optional): the field on MuJoCo Warp, and the hexapod task as a vector
     # environment, which takes the dm_control task's constants from mjrft.envs.hexapod_sand.
@@ -52,6 +53,25 @@ def test_no_module_imports_from_a_layer_above(layer):
             ):
                 bad.append(f"{path.name} imports the public alias {name}; use the layer's module")
     assert not bad, bad
+
+
+def test_importing_the_app_layer_imports_nothing_of_the_sweep_layer():
+    """app and sweep do not import each other: every module of mjrft.app imports (CLI parser
+    built) without mjrft.sweep, which imports the app layer; the CLI reaches the sweep command
+    by its name, and that name resolves."""
+    modules = sorted(f"mjrft.app.{p.stem}" for p in (PACKAGE / "app").glob("*.py"))
+    code = (
+        f"import sys, importlib\nfor m in {modules!r}:\n    importlib.import_module(m)\n"
+        "from mjrft.app import cli\ncli.build_parser()\n"
+        "print(sorted(m for m in sys.modules if m.startswith('mjrft.sweep')))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
+    from mjrft.app import cli
+
+    module, _, name = cli.SWEEP_COMMAND.partition(":")
+    handler = getattr(importlib.import_module(module), name)
+    assert callable(handler) and module.startswith("mjrft.sweep.")
 
 
 def test_core_imports_no_mujoco_rerun_or_plotting():

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import math
 import re
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 from pathlib import Path
@@ -110,11 +112,16 @@ def test_the_local_backend_table_equals_the_serial_results_bit_for_bit(serial, t
 def test_the_ray_backend_table_equals_the_serial_results_bit_for_bit(serial, tmp_path):
     ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'mjrft[ray]')")
     study, cells, _ = serial
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    # A local instance of its own, in a folder of its own (not what /tmp/ray names; short,
+    # since Ray's sockets live under it, 108 bytes at most).
+    short = tempfile.mkdtemp(prefix="mjrft-ray-", dir="/tmp")
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False,
+             _temp_dir=short)  # fmt: skip
     try:
         summary = run_study(study, tmp_path / "out", backend="ray", plots=False)
     finally:
         ray.shutdown()
+        shutil.rmtree(short, ignore_errors=True)
     assert summary.computed == 8 and summary.failed == 0
     assert table(tmp_path / "out", study) == cells
 

@@ -176,8 +176,9 @@ RUN_JSON = "run.json"
 RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
-#: Exit code of `mjrft sweep` when runs failed (their rows say why).
-EXIT_RUNS_FAILED = 3
+#: Exit codes of `mjrft sweep`: runs failed (their rows say why); the sweep stopped for a failure
+#: outside its runs (a full disk; sysexits.h's EX_IOERR).
+EXIT_RUNS_FAILED, EXIT_SWEEP_STOPPED = 3, 74
 
 
 class Terminated(KeyboardInterrupt):
@@ -585,16 +586,20 @@ def _add_sweep(sub) -> None:
             "Run every run of STUDY (a TOML file: the model, the parameters and where each goes "
             "in the model, their values, the duration and the metrics; docs/sweeps.md), each in "
             "a worker built from scratch, and append one row per finished run to "
-            "DIR/results.csv (run id, parameters, metrics, status, error, wall time, seed, "
-            "versions), flushed as runs finish; then write a PNG per metric into DIR (a line "
-            "over one varied parameter, a heat map over two). The first run is loaded before "
-            "any starts: if it and the run most unlike it fail to load with the same error, the "
-            "sweep stops with that error. A run that fails (its values do not compile, it "
-            "diverges, user code raises) is recorded with its error and the others go on. On "
-            "Ctrl-C or SIGTERM no new run starts, the runs in flight are stopped, the finished "
-            "rows are kept and the command says how to resume. Exit codes: 0 done, every run "
-            "ok, 2 bad input, 3 done with failed runs (the command says how many), 130 "
-            "interrupted, 143 terminated."
+            "DIR/results.csv (run id, parameters, metrics, max_froude and quasi_static, status, "
+            "error, warnings, wall time, seed, versions), flushed as runs finish; then write a "
+            "PNG per metric into DIR (a line over one varied parameter, a heat map over two). "
+            "One sweep at a time writes DIR (a second is refused, naming the first's pid and "
+            "host). The first run is loaded before any starts: if it and the run most unlike it "
+            "fail to load with the same error, the sweep stops with that error. A run that fails "
+            "(its values do not compile, it diverges, user code raises) is recorded with its "
+            "error and the others go on; one that fails for a reason outside it (its worker "
+            "killed, the disk full) has status retry and --resume runs it again. On Ctrl-C, "
+            "SIGTERM or a full disk no new run starts, the runs in flight are stopped, the "
+            "finished rows are kept whole and the command says how to resume. Exit codes: 0 "
+            "done, every run ok, 2 bad input or DIR in use, 3 done with failed or retry runs "
+            "(the command says how many), 74 stopped by a failure outside the runs (a full "
+            "disk), 130 interrupted, 143 terminated."
         ),
     )
     s.add_argument("study", metavar="STUDY", help="the study description (TOML)")
@@ -630,74 +635,17 @@ def _add_sweep(sub) -> None:
     s.set_defaults(func=_sweep)
 
 
-class _SweepProgress:
-    """``run_study``'s progress on stderr: runs done and the ETA, and each failed run's error."""
-
-    def __init__(self, name: str) -> None:
-        self.name, self.done, self.total, self.bar = name, 0, 0, None
-
-    def __call__(self, done: int, total: int, row: dict | None) -> None:
-        self.done, self.total = done, total
-        if row is None:
-            self.bar = _Progress(f"mjrft sweep {self.name}", after=0.0)
-            return
-        if row["status"] != "ok":
-            end = "\n" if self.bar.tty and self.bar.shown else ""
-            print(f"{end}  run {row['run_id']} failed: {row['error']}", file=sys.stderr)
-        self.bar.label = f"mjrft sweep {self.name}: {done}/{total} runs"
-        self.bar(done / total)
+#: The handler of ``mjrft sweep``: it lives in the sweep layer (``mjrft.sweep``, which runs its
+#: simulations through this layer), so it is named here, as console_scripts name entry points,
+#: and imported only when the command runs: the app layer imports nothing of mjrft.sweep.
+SWEEP_COMMAND = "mjrft.sweep.command:main"
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    import shlex
+    import importlib
 
-    from mjrft import sweep
-
-    study = sweep.Study.load(args.study)
-    out = Path(args.out)
-    if args.plots_only:
-        sweep.check_same_study(out, study)
-        for path in sweep.plot_study(study, out):
-            print(f"  {path}")
-        return 0
-    progress = _SweepProgress(study.name)
-    address = None if args.ray in (None, RAY_LOCAL) else args.ray
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    try:
-        summary = sweep.run_study(
-            study, out, workers=args.workers, backend="ray" if args.ray else "local",
-            address=address, resume=args.resume, progress=progress,
-        )  # fmt: skip
-    except KeyboardInterrupt as exc:
-        how = "terminated" if isinstance(exc, Terminated) else "interrupted"
-        again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
-        again += ["--workers", str(args.workers)] if args.workers else []
-        again += ["--ray", args.ray] if args.ray else []
-        print(
-            f"\nmjrft sweep: {how} after {progress.done} of {progress.total} runs; every finished "
-            f"run is in {out / 'results.csv'}; resume with: {shlex.join(again)}",
-            file=sys.stderr,
-        )
-        return EXIT_TERMINATED if how == "terminated" else EXIT_INTERRUPTED
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-    elapsed = time.perf_counter() - args.started[0]
-    before = f" ({summary.failed_before} failed)" if summary.failed_before else ""
-    print(
-        f"mjrft sweep {study.name}: {summary.computed} runs computed ({summary.failed} failed, "
-        f"see the error column), {summary.skipped} already in the table{before}, "
-        f"{summary.total} in all; {len(summary.plots)} plots; {elapsed:.1f} s; wrote "
-        f"{summary.table}"
-    )
-    failed = summary.failed + summary.failed_before
-    if failed:
-        print(
-            f"mjrft sweep: {failed} of {summary.total} runs failed; their errors are in the "
-            f"error column of {summary.table}",
-            file=sys.stderr,
-        )
-        return EXIT_RUNS_FAILED
-    return 0
+    module, _, name = SWEEP_COMMAND.partition(":")
+    return getattr(importlib.import_module(module), name)(args)
 
 
 def _add_fit(sub) -> None:

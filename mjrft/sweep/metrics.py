@@ -10,6 +10,7 @@ the RFT torque about its centre of mass (CoM).
 
 from __future__ import annotations
 
+import copy
 import itertools
 import math
 from collections.abc import Callable, Mapping
@@ -334,7 +335,8 @@ class Probe:
         row[s[7]] = data.sensordata
         self.n += 1
 
-    def _flush(self, final: bool) -> None:
+    def _chunk(self, final: bool) -> Chunk:
+        """The states taken since the last flush as a Chunk."""
         rows, n, kb = self.rows[: self.n], self.n, len(self.ids)
         t, wr, cv, com, sub, f, v, sens = np.split(rows, self.cuts, axis=1)
         cv, com = cv.reshape(n, kb, 6), com.reshape(n, kb, 3)
@@ -344,7 +346,10 @@ class Probe:
         if final and n:
             w[-1] = 0.0  # the final state acts in no step
         twist = np.concatenate([cv[..., :3], v_com], axis=2)
-        chunk = Chunk(t[:, 0], w, wr.reshape(n, kb, 6), twist, com, f * v, sens)
+        return Chunk(t[:, 0], w, wr.reshape(n, kb, 6), twist, com, f * v, sens)
+
+    def _flush(self, final: bool) -> None:
+        chunk = self._chunk(final)
         for m in self.metrics:
             m.update(chunk)
         self.n = 0
@@ -353,6 +358,19 @@ class Probe:
         """Every built-in metric's value (name -> float), once the run has ended at `data`."""
         self._flush(final=True)
         return {m.spec.name: float(m.value(data, self.fld.surface)) for m in self.metrics}
+
+    def partial(self, data: mujoco.MjData) -> dict[str, float]:
+        """Every built-in metric's value over the states taken so far, `data` the latest (for
+        reports while the run goes); the run's own measurement is left as it was, so its final
+        ``values`` do not depend on how often this is called."""
+        chunk = self._chunk(final=False)
+        out = {}
+        for m in self.metrics:
+            twin = copy.copy(m)
+            twin.series = copy.copy(m.series)
+            twin.update(chunk)
+            out[m.spec.name] = float(twin.value(data, self.fld.surface))
+        return out
 
 
 @dataclass

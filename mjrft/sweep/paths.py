@@ -279,11 +279,44 @@ def _check_custom(t: Target, value: Any) -> None:
         raise StudyError(f"path {t.path!r}: no such scene value (valid: {valid})")
 
 
+#: ``mjrft:`` values that exclude each other in a model (``mjrft.field.scene`` refuses both):
+#: writing one removes the model's others, so that a study replaces a preset by zeta, a flat
+#: surface by a height field, a triangle count by a tolerance, and back.
+REPLACES = {
+    "material": ("zeta", "coefficients"),
+    "zeta": ("material",),
+    "coefficients": ("material",),
+    "surface_hfield": ("surface_z", "surface_slope"),
+    "surface_z": ("surface_hfield",),
+    "surface_slope": ("surface_hfield",),
+    "triangles": ("tolerance",),
+    "tolerance": ("triangles",),
+}
+
+
+def check_exclusive(targets: list[tuple[str, Target]]) -> None:
+    """Refuse a study that writes two ``mjrft:`` values that replace each other (``REPLACES``):
+    the one written last would silently remove the other. `targets`: (where, target) pairs."""
+    custom = {t.name: where for where, t in targets if t.where == "custom"}
+    for name, where in custom.items():
+        for other in REPLACES.get(name, ()):
+            if other in custom:
+                raise StudyError(
+                    f"{where} writes mjrft:{name} and {custom[other]} writes mjrft:{other}, "
+                    f"which replace each other in a model (each removes the other); give one"
+                )
+
+
 def set_custom_value(spec: mujoco.MjSpec, t: Target, value: Any) -> None:
-    """Write an ``mjrft:`` custom value, adding the element if the model has none."""
+    """Write an ``mjrft:`` custom value, adding the element if the model has none and removing
+    the model's values it replaces (``REPLACES``: e.g. mjrft:zeta removes mjrft:material)."""
     from mjrft.field.scene import KEYS
 
     _check_custom(t, value)
+    for other in REPLACES.get(t.name, ()):
+        element = spec.text(f"mjrft:{other}") or spec.numeric(f"mjrft:{other}")
+        if element is not None:
+            spec.delete(element)
     name = f"mjrft:{t.name}"
     if t.name in KEYS["text"]:
         element = spec.text(name) or spec.add_text(name=name, data="")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import signal
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -9,9 +11,9 @@ from pathlib import Path
 
 from mjrft.field.signals import HeldSignals
 from mjrft.sweep import backends
-from mjrft.sweep.errors import StudyError, one_line
-from mjrft.sweep.executor import STATUS_OK
-from mjrft.sweep.results import RESULTS_CSV, ResultsTable, load_results
+from mjrft.sweep.errors import StudyError, SweepStopped, one_line
+from mjrft.sweep.executor import STATUS_OK, STATUS_RETRY, stops_the_sweep
+from mjrft.sweep.results import RESULTS_CSV, ResultsTable, describe, load_results
 from mjrft.sweep.study import RunSpec, Study
 
 #: progress(done, total, row): after each finished run (row None at the start); counts are of
@@ -22,15 +24,36 @@ Progress = Callable[[int, int, "dict | None"], None]
 @dataclass
 class SweepSummary:
     """What ``run_study`` did: runs in the study, already in the folder (skipped), computed now,
-    failed among those, failed among the skipped ones; the results table and plots written."""
+    failed among those (status "failed" or "retry"), "retry" among those (a resume runs them
+    again), failed among the skipped ones; the results table and plots written; and the
+    warnings the runs computed now raised: "Category: message" -> the runs that raised it."""
 
     total: int
     skipped: int
     computed: int = 0
     failed: int = 0
+    retry: int = 0
     failed_before: int = 0
     table: Path = Path()
     plots: list[Path] = field(default_factory=list)
+    warnings: dict[str, list[str]] = field(default_factory=dict)
+
+    def warning_groups(self) -> list[tuple[str, int, str]]:
+        """(category, how many runs raised it, the first message) per category of warning the
+        runs computed now raised (each run's own are in its warnings column)."""
+        groups: dict[str, tuple[str, set[str]]] = {}
+        for text, run_ids in self.warnings.items():
+            category, message = text.split(": ", 1)
+            groups.setdefault(category, (message, set()))[1].update(run_ids)
+        return [(c, len(ids), first) for c, (first, ids) in groups.items()]
+
+    def warning_lines(self) -> list[str]:
+        """One line per category of warning (``warning_groups``), for a summary printed once
+        per sweep."""
+        return [
+            f"{category} in {n} of {self.computed} runs; the first: {first}"
+            for category, n, first in self.warning_groups()
+        ]
 
 
 def run_study(
@@ -55,8 +78,11 @@ def run_study(
         without it a folder that holds a sweep is refused.
     Raises:
       StudyError for bad input, and before any run starts and anything is written when every
-      run would fail to load alike (``check_loads``); KeyboardInterrupt (Ctrl-C) after ending
-      the runs in flight, with every finished row on disk (resume with ``resume=True``).
+      run would fail to load alike (``check_loads``); FolderLocked (a StudyError) when another
+      sweep is writing `out`; KeyboardInterrupt (Ctrl-C) after ending the runs in flight, with
+      every finished row on disk (resume with ``resume=True``); SweepStopped, likewise, when
+      something outside the runs fails (the disk full: the table keeps every whole row, the
+      run that met it is "retry").
     """
     if backend not in backends.BACKENDS:
         raise StudyError(f"backend {backend!r}; valid: {', '.join(backends.BACKENDS)}")
@@ -64,6 +90,32 @@ def run_study(
         raise StudyError(f"workers = {workers}: need at least 1")
     out = Path(out)
     check_loads(study)
+    session = (
+        backends.ray_session(workers, address) if backend == "ray" else contextlib.nullcontext()
+    )
+    with session as own_instance:  # Ray reached before the folder is written
+        backend_run = _backend(backend, workers, own_instance)
+        return _sweep(study, out, resume, plots, progress, backend_run)
+
+
+def _backend(backend: str, workers: int | None, own_instance: bool | None) -> Callable:
+    """The function ``run(study, runs, out, on_row)`` of `backend`."""
+    if backend == "serial":
+        return backends.serial
+    if backend == "local":
+        return functools.partial(backends.local, workers=workers or backends.cores())
+    return functools.partial(backends.ray_backend, own_instance=bool(own_instance))
+
+
+def _sweep(
+    study: Study,
+    out: Path,
+    resume: bool,
+    plots: bool,
+    progress: Progress | None,
+    backend_run: Callable[[Study, list[RunSpec], Path, Callable[[dict], None]], None],
+) -> SweepSummary:
+    """``run_study`` once its first run loads and its backend is ready."""
     table = ResultsTable.open(out, study, resume)
     runs = study.runs()
     pending = [r for r in runs if r.run_id not in table.done]
@@ -74,27 +126,58 @@ def run_study(
     def on_row(row: dict) -> None:
         with HeldSignals((signal.SIGINT, signal.SIGTERM)):  # a row is written whole or not
             table.append(row)
-        summary.computed += 1
-        summary.failed += row["status"] != STATUS_OK
+        _count(summary, row)
         if progress is not None:
             progress(summary.computed, len(pending), row)
+        if stops_the_sweep(row):
+            raise SweepStopped(
+                f"run {row['run_id']} could not write its files: {row['error']}; every later "
+                "run would fail alike, so the sweep stopped (the run is recorded with status "
+                "retry and a resume runs it again)"
+            )
 
     if progress is not None:
         progress(0, len(pending), None)
     try:
-        if backend == "serial":
-            backends.serial(study, pending, out, on_row)
-        elif backend == "local":
-            backends.local(study, pending, out, on_row, workers or backends.cores())
-        else:
-            backends.ray_backend(study, pending, out, on_row, workers, address)
+        _remove_partial_series(out)
+        backend_run(study, pending, out, on_row)
+        if plots:
+            summary.plots = _plots(study, out)
     finally:
+        _remove_partial_series(out)  # of runs stopped in flight: never recorded
         table.close()
-    if plots:
-        from mjrft.sweep.plots import plot_study
-
-        summary.plots = plot_study(study, out)
     return summary
+
+
+def _count(summary: SweepSummary, row: dict) -> None:
+    """Add a finished run's row to the summary: its status and its warnings."""
+    summary.computed += 1
+    summary.failed += row["status"] != STATUS_OK
+    summary.retry += row["status"] == STATUS_RETRY
+    for text in (w for w in row.get("warnings", "").split(" | ") if ": " in w):
+        summary.warnings.setdefault(text, []).append(row["run_id"])
+
+
+def _remove_partial_series(out: Path) -> None:
+    """Remove the unfinished time series (``runs/.<run_id>.csv.<pid>.tmp``) of runs that were
+    stopped in flight, by this sweep or an earlier one: with the folder locked and this sweep's
+    workers ended, no run is writing them."""
+    from mjrft.sweep.executor import RUNS_DIR
+
+    for tmp in (out / RUNS_DIR).glob(".*.csv.*.tmp"):
+        tmp.unlink(missing_ok=True)
+
+
+def _plots(study: Study, out: Path) -> list[Path]:
+    from mjrft.sweep.plots import plot_study
+
+    try:
+        return plot_study(study, out)
+    except OSError as exc:
+        raise SweepStopped(
+            f"every run is in {str(out / RESULTS_CSV)!r}, but its figures could not be written: "
+            f"{describe(exc)}; draw them with --plots-only (plot_study) once there is room"
+        ) from None
 
 
 def check_loads(study: Study) -> None:

@@ -42,6 +42,9 @@ SAMPLINGS = ("grid", "random")
 #: minutes) take hours to days even on many cores: a larger count is almost always a range whose
 #: step is far too fine.
 MAX_RUNS = 1_000_000
+#: Columns of the results table besides the parameters and metrics (``results.columns``).
+RESERVED = ("run_id", "max_froude", "quasi_static", "status", "error", "warnings", "wall_s",
+            "seed", "versions")  # fmt: skip
 #: Significant digits ranges are rounded to (so a step of 0.1 gives 0.3, not 0.30000000000000004).
 RANGE_DIGITS = 15
 
@@ -150,9 +153,31 @@ class Study:
             rid = run_id(values)
             if rid not in seen:
                 seen.add(rid)
-                digest = hashlib.sha256(f"{self.seed}/{rid}".encode()).digest()
-                out.append(RunSpec(len(out), rid, values, int.from_bytes(digest[:4], "big")))
+                out.append(RunSpec(len(out), rid, values, self._seed(rid)))
         return out
+
+    def run(self, values: dict[str, Any]) -> RunSpec:
+        """The run of one set of parameter values (name -> value; every parameter, no other
+        name), on the grid or not: its id and seed as ``runs`` would give them. NumPy scalars
+        become Python numbers. Raises StudyError naming a missing or unknown parameter."""
+        names = [p.name for p in self.parameters]
+        missing = [n for n in names if n not in values]
+        unknown = [k for k in values if k not in names]
+        if missing or unknown:
+            what = f"missing {', '.join(map(repr, missing))}" if missing else ""
+            what += ("; " if missing and unknown else "") + (
+                f"unknown {', '.join(map(repr, unknown))}" if unknown else ""
+            )
+            raise StudyError(
+                f"study {self.name!r}: parameter values {what} (parameters: {', '.join(names)})"
+            )
+        plain = {n: _plain(values[n]) for n in names}
+        rid = run_id(plain)
+        return RunSpec(0, rid, plain, self._seed(rid))
+
+    def _seed(self, rid: str) -> int:
+        digest = hashlib.sha256(f"{self.seed}/{rid}".encode()).digest()
+        return int.from_bytes(digest[:4], "big")
 
     def configure(self, spec: mujoco.MjSpec, run: RunSpec) -> RunConfig:
         """Write run's settings and parameter values into `spec` (the ``[set]`` entries first,
@@ -204,6 +229,16 @@ class Study:
     def _functions(self) -> list[str]:
         fns = [m.options["function"] for m in self.metrics if m.kind == "custom"]
         return fns + ([self.controller] if self.controller else [])
+
+
+def _plain(value: Any) -> Any:
+    """A value as TOML would give it: NumPy scalars and arrays (as Tune and Optuna hand them
+    out) become Python numbers and lists."""
+    if isinstance(value, np.generic | np.ndarray):
+        return value.tolist()
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
 
 
 def _replace(study: Study, **changes: Any) -> Study:
@@ -422,6 +457,16 @@ def _validate(study: Study, where: str) -> None:
     clash = set(names) & {m.name for m in study.metrics}
     if clash:
         raise StudyError(f"{where}: {sorted(clash)[0]!r} is both a parameter and a metric")
+    taken = sorted((set(names) | {m.name for m in study.metrics}) & set(RESERVED))
+    if taken:
+        raise StudyError(
+            f"{where}: {taken[0]!r} names a column of the results table; parameters and metrics "
+            f"take other names than {', '.join(RESERVED)}"
+        )
+    paths.check_exclusive(
+        [(f"[set] {t.path!r}", t) for t, _ in study.settings]
+        + [(f"parameter {p.name!r}", t) for p in study.parameters for t in p.targets]
+    )
     for target, value in study.settings:
         if isinstance(value, dict):
             unknown = expressions.names(value["expr"], where) - set(names)
