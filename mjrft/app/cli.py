@@ -175,13 +175,59 @@ RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
 RUN_JSON = "run.json"
 RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
-EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
+EXIT_FAILED, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 1, 3, 130, 143
 #: Exit code of `mjrft sweep` when runs failed (their rows say why).
 EXIT_RUNS_FAILED = 3
+#: The signals that stop `mjrft run`: name -> (run.json status, exit code 128 + signal number).
+STOP_SIGNALS = {
+    "SIGINT": ("interrupted", EXIT_INTERRUPTED),
+    "SIGTERM": ("terminated", EXIT_TERMINATED),
+    "SIGHUP": ("terminated", 129),
+}
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an exception so that the run finishes its files as on Ctrl-C."""
+    """A signal that stops `mjrft run` (``STOP_SIGNALS``), raised where the run is so that it
+    finishes its files as on Ctrl-C. Attributes: name ('SIGTERM'), status, code (exit code)."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        self.name = signal.Signals(signum).name
+        self.status, self.code = STOP_SIGNALS[self.name]
+        super().__init__(f"{self.status} by {self.name}")
+
+
+class _StopSignals:
+    """``STOP_SIGNALS``' handlers over `mjrft run`: the first signal raises ``Terminated`` where
+    the run is (start-up or the loop); after it, and once ``disarm`` is called (the results are
+    being written), a signal is only recorded in ``received``, so that whatever arrives the run
+    ends with its files complete. A signal ignored when the run starts (``nohup``) stays
+    ignored."""
+
+    def __init__(self) -> None:
+        self.received: list[str] = []
+        self.armed = True
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> _StopSignals:
+        for name in STOP_SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is not None and signal.getsignal(sig) is not signal.SIG_IGN:
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _handle(self, signum: int, frame) -> None:
+        self.received.append(signal.Signals(signum).name)
+        if self.armed:
+            self.armed = False
+            raise Terminated(signum)
+
+    def disarm(self) -> None:
+        """From now on signals are only recorded."""
+        self.armed = False
 
 
 def _check_outputs(args: argparse.Namespace) -> Path:
@@ -222,28 +268,52 @@ def _on_sigterm(signum, frame) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from mjrft.app import metadata, simulate
-    from mjrft.field.signals import HeldSignals
+    with _StopSignals() as stop:
+        try:
+            run = _prepare_run(args)
+        except Terminated as exc:
+            print(
+                f"mjrft run: {exc} during start-up, before the first step: nothing was written",
+                file=sys.stderr,
+            )
+            return exc.code
+        return _run_prepared(args, run, stop)
+
+
+def _prepare_run(args: argparse.Namespace) -> _RunInfo:
+    """Everything `mjrft run` checks and builds before it writes a file."""
+    from mjrft.app import simulate
 
     xml = simulate.resolve_model(args.model)
     out = _check_outputs(args)
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, xml)
     simulate.step_count(args.duration, model.opt.timestep)  # refused before anything is written
+    return _RunInfo(xml, out, model, fld, keyframe, ctrl)
+
+
+def _run_prepared(args: argparse.Namespace, run: _RunInfo, stop: _StopSignals) -> int:
+    """Simulate and write the results; whatever ends the run (a signal, a full disk, an error),
+    its files end complete: the CSV's whole rows, the plots of them, run.json's final status."""
+    import mujoco
+
+    from mjrft.app import metadata, simulate
+
+    out, model, fld = run.out, run.model, run.fld
     columns = simulate.new_recording(model, fld).columns
-    run = _RunInfo(xml, model, fld, keyframe)
-    # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
-    for name in RUN_FILES:
-        (out / name).unlink(missing_ok=True)
-    metadata.write(out / RUN_JSON, run.record(args, "running"))
-    # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
-    # crash or SIGKILL loses at most the last second.
-    sink = simulate.CsvSink(out / RUN_CSV, columns)
-    rec = simulate.Recording(columns, [be.name for be in fld.bodies], sink=sink)
-    recorder = _recorder(args, model, fld)
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    rec = simulate.Recording(columns, [be.name for be in fld.bodies])
+    data = mujoco.MjData(model)
+    recorder = None
     status, code = "completed", 0
     try:
+        # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
+        for name in RUN_FILES:
+            (out / name).unlink(missing_ok=True)
+        metadata.write(out / RUN_JSON, run.record(args, "running"))
+        # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
+        # crash or SIGKILL loses at most the last second.
+        rec.sink = simulate.CsvSink(out / RUN_CSV, columns)
+        recorder = _recorder(args, model, fld)
         t_sim = time.perf_counter()
         try:
             simulate.run(
@@ -251,44 +321,44 @@ def _run(args: argparse.Namespace) -> int:
                 args.duration,
                 fld=fld,
                 record_every=args.record_every,
-                progress=_Progress(f"mjrft run {xml.name}"),
+                progress=_Progress(f"mjrft run {run.xml.name}"),
                 recording=rec,
                 observer=recorder,
                 observe_every=recorder.every if recorder is not None else 1,
-                keyframe=keyframe,
-                ctrl=ctrl,
+                keyframe=run.keyframe,
+                ctrl=run.ctrl,
+                data=data,
             )
         finally:
             run.simulation = time.perf_counter() - t_sim
+        stop.disarm()
     except simulate.RunDiverged as exc:
         status, code = "diverged", EXIT_DIVERGED
         print(f"mjrft run: {exc}", file=sys.stderr)
-    except Terminated:
-        status, code = "terminated", EXIT_TERMINATED
-    except KeyboardInterrupt:
-        status, code = "interrupted", EXIT_INTERRUPTED
-    except Exception as exc:
-        status, run.error = "failed", f"{type(exc).__name__}: {exc}"
+    except Terminated as exc:
+        status, code = exc.status, exc.code
+    except OSError as exc:  # the outputs cannot be written (a full disk, a size limit)
+        status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # a bug or the user's controller: the traceback follows
+        status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
         raise
     finally:
-        # Whatever was computed is written, even when the run fails or is interrupted; a second
-        # Ctrl-C or a SIGTERM waits until the CSV and the recording are complete.
-        with HeldSignals((signal.SIGINT, signal.SIGTERM)):
-            sink.close()
-            if recorder is not None:
-                recorder.close()  # completes the .rrd file
-        signal.signal(signal.SIGTERM, previous)
-        _write_run_results(args, run, rec, recorder, out, status)
+        # Whatever was computed is written, even when the run fails or is interrupted; any
+        # signal from here on waits until the files are complete.
+        stop.disarm()
+        code = _finish_run(args, run, rec, recorder, data, status, code, stop.received)
     return code
 
 
 class _RunInfo:
     """What `mjrft run` ran and how long its parts took [s], for its summary and run.json."""
 
-    def __init__(self, xml: Path, model, fld, keyframe: int | None) -> None:
-        self.xml, self.model, self.fld, self.keyframe = xml, model, fld, keyframe
+    def __init__(self, xml: Path, out: Path, model, fld, keyframe: int | None, ctrl) -> None:
+        self.xml, self.out, self.model, self.fld = xml, out, model, fld
+        self.keyframe, self.ctrl = keyframe, ctrl
         self.simulation = self.plots = float("nan")
         self.error: str | None = None
+        self.notes: list[str] = []  # what could not be written besides the run's own error
 
     def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
         """The run.json record (``mjrft.app.metadata``)."""
@@ -374,38 +444,99 @@ def _load_controller(spec: str):
     return fn
 
 
-def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: str) -> None:
-    """Plots from the CSV, run.json and the summary of `mjrft run` (also after a failure)."""
-    from mjrft.app import metadata, report, simulate
+def _finish_run(
+    args, run: _RunInfo, rec, recorder, data, status: str, code: int, signals: list[str]
+) -> int:
+    """Complete `mjrft run`'s files whatever ended it: close the CSV (its whole rows) and the
+    recording, draw the plots from the CSV, write run.json's final status and print the summary.
+    An I/O error here (a full disk) turns a completed run into a failed one, named; it never
+    stops the other files. Returns the exit code."""
+    from mjrft.app import metadata
 
-    fld, model = run.fld, run.model
-    t_end = float(rec.last_row[0]) if rec.n_rows else 0.0
-    pngs: list[Path] = []
-    if rec.n_rows and rec.body_names and not args.no_plots:
-        t0 = time.perf_counter()
-        plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
-        title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
-        pngs = report.plot_run(plots, fld.surface, out, title=title)
-        run.plots = time.perf_counter() - t0
+    sink = rec.sink
+    if sink is not None:
+        try:
+            sink.close()
+        except OSError as exc:
+            if run.error is None:
+                status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    if recorder is not None:
+        try:
+            recorder.close()  # completes the .rrd file
+        except Exception as exc:  # the rest is still written
+            run.notes.append(f"the recording could not be completed: {type(exc).__name__}: {exc}")
+    rows = sink.rows_written if sink is not None else 0
+    last = sink.last_written if sink is not None else None
+    t_end = float(last[0]) if last is not None else 0.0
+    pngs = _run_plots(args, run, rec) if rows else []
+    if signals and code == 0:  # completed, then asked to stop: every file is complete
+        code = STOP_SIGNALS[signals[0]][1]
     total = time.perf_counter() - args.started[0]
-    outputs = [str(rec.sink.path), *map(str, pngs)]
+    outputs = [str(sink.path)] if sink is not None and sink.path.exists() else []
+    outputs += map(str, pngs)
     if recorder is not None and recorder.path is not None:
         outputs.append(str(recorder.path))
     timing = {"simulation_s": run.simulation, "plots_s": run.plots, "total_s": total}
-    metadata.write(
-        out / RUN_JSON,
-        run.record(args, status, simulated_s=t_end, rows=rec.n_rows, outputs=outputs,
-                   timing={k: v for k, v in timing.items() if v == v},
-                   max_froude=rec.max_froude),
+    record = run.record(
+        args, status, simulated_s=t_end, rows=rows, outputs=outputs,
+        timing={k: v for k, v in timing.items() if v == v}, max_froude=rec.max_froude,
+        signals=signals, notes=run.notes,
     )  # fmt: skip
-    sim = run.simulation
+    try:
+        metadata.write(run.out / RUN_JSON, record)
+    except OSError as exc:
+        run.notes.append(f"{run.out / RUN_JSON} could not be written: {exc}")
+        code = code or EXIT_FAILED
+    _print_summary(run, status, t_end, rows, len(pngs), total, signals, recorder)
+    return code
+
+
+def _run_plots(args, run: _RunInfo, rec) -> list:
+    """The plots of the rows on disk (none with --no-plots); a plot that cannot be written is
+    named in run.notes, and the run's other files are still written."""
+    from mjrft.app import report, simulate
+
+    if args.no_plots or not rec.body_names:
+        return []
+    fld = run.fld
+    t0 = time.perf_counter()
+    try:
+        plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
+        title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
+        pngs = report.plot_run(plots, fld.surface, run.out, title=title)
+    except OSError as exc:
+        run.notes.append(f"the plots could not be written: {exc}")
+        return []
+    except Exception as exc:  # a plotting bug must not cost the run's record
+        import traceback
+
+        traceback.print_exc()
+        run.notes.append(f"the plots failed: {type(exc).__name__}: {exc}")
+        return []
+    run.plots = time.perf_counter() - t0
+    return pngs
+
+
+def _print_summary(run: _RunInfo, status, t_end, rows, n_plots, total, signals, recorder) -> None:
+    """`mjrft run`'s summary line on stdout; errors and notes on stderr."""
+    model, fld, sim = run.model, run.fld, run.simulation
     rate = f"{t_end / sim:.2f}x real time" if sim == sim and sim > 0 else "no steps"
     print(
-        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rec.n_rows} rows, "
+        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rows} rows, "
         f"{fld.n_elements} triangles, dt = {model.opt.timestep:g} s, {_integrator_name(model)}; "
         f"simulation {sim:.2f} s wall ({rate}, the simulation alone), {total:.1f} s in all; "
-        f"wrote {rec.sink.path}, {RUN_JSON} and {len(pngs)} plots"
+        f"wrote {run.out / RUN_CSV}, {RUN_JSON} and {n_plots} plots",
+        flush=True,
     )
+    if status == "failed" and run.error:
+        print(f"mjrft run: failed: {run.error}", file=sys.stderr)
+    if signals:
+        print(
+            f"mjrft run: received {', '.join(signals)}; the run's files were completed first",
+            file=sys.stderr,
+        )
+    for note in run.notes:
+        print(f"mjrft run: {note}", file=sys.stderr)
     if recorder is not None and recorder.path is not None and recorder.path.exists():
         size_mb = recorder.path.stat().st_size / 1e6
         print(
@@ -534,9 +665,12 @@ def _add_run(sub) -> None:
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
             "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
             "--rrd a rerun recording. The CSV is written as the run goes (flushed every second); "
-            "on Ctrl-C or SIGTERM the run stops and finishes its CSV, recording and plots. Exit "
-            "codes: 0 completed, 2 bad input, 3 the simulation diverged (MuJoCo reset its state; "
-            "the rows before are kept), 130 interrupted, 143 terminated."
+            "on Ctrl-C, SIGTERM or SIGHUP the run stops and finishes its CSV, recording, plots "
+            "and run.json (later signals wait for them); an output that cannot be written (a "
+            "full disk) ends it 'failed', naming the file, with the whole rows written kept. "
+            "Exit codes: 0 completed, 1 failed (run.json's error says why), 2 bad input, 3 the "
+            "simulation diverged (MuJoCo reset its state; the rows before are kept), 129 hang-up, "
+            "130 interrupted, 143 terminated."
         ),
     )
     r.add_argument("model", metavar="MODEL", help=_MODEL_HELP)

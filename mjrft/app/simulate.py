@@ -5,9 +5,11 @@ Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import math
 import os
+import signal
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,6 +22,7 @@ from mjrft.app.regime import FroudeWatch, com_velocity
 from mjrft.field import plugin
 from mjrft.field.granular_field import GranularField
 from mjrft.field.options import SceneOptions
+from mjrft.field.signals import HeldSignals
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -109,23 +112,46 @@ _DIVERGING = {
 }
 
 
+#: Signals held while a block of rows is written, so that no signal cuts a row in two.
+_WRITE_HELD = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+class OutputError(OSError):
+    """Writing a run's output failed (a full disk, a file-size limit, a vanished folder): the
+    message names the file, the system's reason and what the file keeps."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
 class CsvSink:
     """A CSV file written as a run goes: the header at once, rows buffered and flushed at least
     every ``flush_s`` seconds of wall time and at close, in memory that does not grow with the
     run. Values are written exactly (shortest round-trip repr). Rows on disk survive a crash
-    or SIGKILL, up to the last flush."""
+    or SIGKILL, up to the last flush; a block of rows is written with signals held, and a write
+    that fails (``OutputError``: a full disk, a file-size limit) is cut back to the last whole
+    row, so the file never ends in part of a row."""
 
     def __init__(self, path: str | Path, columns: list[str], flush_s: float = 1.0) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, "w", newline="")
-        self._fh.write(",".join(columns) + "\n")
-        self._fh.flush()
+        self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._size = 0  # bytes of whole rows on disk
         self.flush_s = flush_s
         self._pending: list[np.ndarray] = []
         self._last_flush = _time.monotonic()
-        self.n_rows = 0
+        self.n_rows = 0  # rows appended
+        self.rows_written = 0  # rows on disk
+        self.last_written: np.ndarray | None = None  # the last row on disk
         self.last_row: np.ndarray | None = None
+        self.error: OutputError | None = None
+        _, failure = self._write((",".join(columns) + "\n").encode())
+        if failure is not None:
+            os.close(self._fd)
+            self._fd = None
+            raise OutputError(failure.errno, f"cannot write {self.path}: {failure.strerror}")
 
     def append(self, row: np.ndarray) -> None:
         """Add one row (it is written within ``flush_s`` seconds)."""
@@ -136,20 +162,65 @@ class CsvSink:
             self.flush()
 
     def flush(self) -> None:
-        """Write the buffered rows and hand them to the operating system."""
+        """Write the buffered rows and hand them to the operating system.
+
+        Raises:
+          OutputError if they cannot be written (the file keeps the rows written before)."""
+        if self.error is not None:
+            raise self.error
         if self._pending:
             block = np.vstack(self._pending).tolist()
-            self._pending = []
-            self._fh.write("".join(",".join(map(repr, r)) + "\n" for r in block))
-        self._fh.flush()
+            text = "".join(",".join(map(repr, r)) + "\n" for r in block).encode()
+            # Held: a signal's exception must not fall between the write and its bookkeeping
+            # (the rows would be written twice) nor cut a row in two.
+            with HeldSignals(_WRITE_HELD):
+                kept, failure = self._write(text)
+                n = text.count(b"\n", 0, kept)
+                self.rows_written += n
+                if n:
+                    self.last_written = self._pending[n - 1]
+                del self._pending[:n]
+                if failure is not None:
+                    self.error = OutputError(
+                        failure.errno,
+                        f"cannot write {self.path}: {failure.strerror} (it keeps the header and "
+                        f"the {self.rows_written} rows written before, each whole)",
+                    )
+                    raise self.error from None
         self._last_flush = _time.monotonic()
 
+    def _write(self, data: bytes) -> tuple[int, OSError | None]:
+        """Write `data` at the end of the file: (bytes kept, None), or on failure the whole
+        rows that landed are kept, the rest cut back: (their bytes, the error)."""
+        view, done = memoryview(data), 0
+        try:
+            while done < len(data):
+                done += os.write(self._fd, view[done:])
+        except OSError as exc:
+            kept = data.rfind(b"\n", 0, done) + 1
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._fd, self._size + kept)
+                os.lseek(self._fd, self._size + kept, os.SEEK_SET)
+            self._size += kept
+            return kept, exc
+        self._size += done
+        return done, None
+
     def close(self) -> None:
-        """Flush and close (idempotent)."""
-        if not self._fh.closed:
+        """Flush and close (idempotent). Closes the file even if the flush fails (and raises
+        that OutputError)."""
+        if self._fd is None:
+            return
+        try:
             self.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
+            os.fsync(self._fd)
+        except OSError as exc:
+            if self.error is None:
+                self.error = OutputError(exc.errno, f"cannot write {self.path}: {exc.strerror}")
+            raise self.error from None
+        finally:
+            os.close(self._fd)
+            self._fd = None
 
 
 @dataclass
@@ -285,6 +356,7 @@ def run(
     observe_every: int = 1,
     keyframe: int | None = 0,
     ctrl: Controller | None = None,
+    data: mujoco.MjData | None = None,
 ) -> tuple[mujoco.MjData, Recording]:
     """Simulate `duration` seconds from a keyframe; the engine plugin the model carries adds the
     field's forces inside every step.
@@ -309,6 +381,8 @@ def run(
         the model has one, else from qpos0; None always starts from qpos0.
       ctrl: a controller ``ctrl(t, data)`` called before every step with the MuJoCo time t [s]:
         it returns the (nu,) actuator controls, or None after writing ``data.ctrl`` itself.
+      data: the MjData to step (its state is first reset to the keyframe); a new one if None.
+        Pass one to read its state (e.g. the field's counters) even when the run raises.
     Returns:
       (final MjData, Recording).
     Raises:
@@ -323,7 +397,7 @@ def run(
         raise ValueError(f"observe_every must be >= 1, got {observe_every}")
     fld = fld or GranularField(model)
     rec = recording or new_recording(model, fld)
-    data = reset_data(model, keyframe)
+    data = reset_data(model, keyframe, data)
     apply_ctrl = checked_controller(model, ctrl)
     tick = max(1, n_steps // 100)
     # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
@@ -385,10 +459,15 @@ def step_count(duration: float, timestep: float) -> int:
     return round(duration / timestep)
 
 
-def reset_data(model: mujoco.MjModel, keyframe: int | None = 0) -> mujoco.MjData:
-    """A new MjData at keyframe `keyframe` (0: keyframe 0 if the model has keyframes, else
-    qpos0; None: qpos0)."""
-    data = mujoco.MjData(model)
+def reset_data(
+    model: mujoco.MjModel, keyframe: int | None = 0, data: mujoco.MjData | None = None
+) -> mujoco.MjData:
+    """A new MjData (or `data`, reset) at keyframe `keyframe` (0: keyframe 0 if the model has
+    keyframes, else qpos0; None: qpos0)."""
+    if data is None:
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     if keyframe is None or (keyframe == 0 and model.nkey == 0):
         return data
     if not 0 <= keyframe < model.nkey:
