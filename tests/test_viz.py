@@ -536,7 +536,8 @@ def test_cli_run_writes_the_recording_with_the_requested_decimation_and_scale(tm
         assert row["arrow_scale"] == ([0.25] if len(vec) else [])
         checked += fz[row["step"]] > 0.05
     assert checked >= 3
-    for name in ("timeseries.csv", "forces_vs_time.png", "forces_vs_depth.png", report.PAPER_PNG):
+    # (0.05 s: the sphere's CoM is still above the surface, so no force-vs-depth figure.)
+    for name in ("timeseries.csv", "forces_vs_time.png", report.PAPER_PNG):
         assert (out / name).stat().st_size > 1000, name
 
 

@@ -169,11 +169,16 @@ def _recorder(args: argparse.Namespace, model, fld):
     )
 
 
-#: Files `mjrft run` writes into --out (besides the optional --rrd).
-RUN_CSV = "timeseries.csv"
-RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
-RUN_JSON = "run.json"
-RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
+#: Files `mjrft run` writes into --out (besides the optional --rrd): the table (CSV, or
+#: Parquet with --table-format parquet), run.json and the figures (report.RUN_FIGURES) in the
+#: --figure-format (report.FIGURE_FORMATS; here so that building the parser imports no numpy).
+RUN_CSV, RUN_PARQUET, RUN_JSON = "timeseries.csv", "timeseries.parquet", "run.json"
+TABLE_FORMATS = ("csv", "parquet")
+RUN_FIGURES = ("forces_vs_time", "forces_vs_depth", "rft_summary")
+FIGURE_FORMATS = ("png", "svg", "pdf")
+RUN_PLOTS = tuple(f"{name}.png" for name in RUN_FIGURES)
+RUN_FILES = (RUN_CSV, RUN_PARQUET, RUN_JSON,
+             *(f"{name}.{fmt}" for fmt in FIGURE_FORMATS for name in RUN_FIGURES))  # fmt: skip
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
 EXIT_FAILED, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 1, 3, 130, 143
 #: Exit code of `mjrft sweep` when runs failed (their rows say why).
@@ -288,8 +293,10 @@ def _prepare_run(args: argparse.Namespace) -> _RunInfo:
     out = _check_outputs(args)
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, xml)
-    simulate.step_count(args.duration, model.opt.timestep)  # refused before anything is written
-    return _RunInfo(xml, out, model, fld, keyframe, ctrl)
+    n_steps = simulate.step_count(args.duration, model.opt.timestep)  # refused before any file
+    run = _RunInfo(xml, out, model, fld, keyframe, ctrl)
+    run.record_every = args.record_every or simulate.figure_record_every(n_steps)
+    return run
 
 
 def _run_prepared(args: argparse.Namespace, run: _RunInfo, stop: _StopSignals) -> int:
@@ -320,7 +327,7 @@ def _run_prepared(args: argparse.Namespace, run: _RunInfo, stop: _StopSignals) -
                 model,
                 args.duration,
                 fld=fld,
-                record_every=args.record_every,
+                record_every=run.record_every,
                 progress=_Progress(f"mjrft run {run.xml.name}"),
                 recording=rec,
                 observer=recorder,
@@ -337,6 +344,8 @@ def _run_prepared(args: argparse.Namespace, run: _RunInfo, stop: _StopSignals) -
         print(f"mjrft run: {exc}", file=sys.stderr)
     except Terminated as exc:
         status, code = exc.status, exc.code
+    except KeyboardInterrupt:  # raised by other code than our handler (a controller, a test)
+        status, code = "interrupted", EXIT_INTERRUPTED
     except OSError as exc:  # the outputs cannot be written (a full disk, a size limit)
         status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
     except Exception as exc:  # a bug or the user's controller: the traceback follows
@@ -359,6 +368,8 @@ class _RunInfo:
         self.simulation = self.plots = float("nan")
         self.error: str | None = None
         self.notes: list[str] = []  # what could not be written besides the run's own error
+        self.ground: dict | None = None  # simulate.ground_balance at the end
+        self.record_every = 1  # steps per row of the table
 
     def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
         """The run.json record (``mjrft.app.metadata``)."""
@@ -390,6 +401,7 @@ class _RunInfo:
             "versions": metadata.versions(),
             "machine": metadata.machine(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(args.started[1])),
+            "record_every_steps": self.record_every,
             **extra,
         }  # fmt: skip
 
@@ -451,7 +463,7 @@ def _finish_run(
     recording, draw the plots from the CSV, write run.json's final status and print the summary.
     An I/O error here (a full disk) turns a completed run into a failed one, named; it never
     stops the other files. Returns the exit code."""
-    from mjrft.app import metadata
+    from mjrft.app import metadata, simulate
 
     sink = rec.sink
     if sink is not None:
@@ -468,42 +480,64 @@ def _finish_run(
     rows = sink.rows_written if sink is not None else 0
     last = sink.last_written if sink is not None else None
     t_end = float(last[0]) if last is not None else 0.0
-    pngs = _run_plots(args, run, rec) if rows else []
+    table = _table(args, run, sink)
+    pngs = _run_plots(args, run, rec, table) if rows else []
     if signals and code == 0:  # completed, then asked to stop: every file is complete
         code = STOP_SIGNALS[signals[0]][1]
     total = time.perf_counter() - args.started[0]
-    outputs = [str(sink.path)] if sink is not None and sink.path.exists() else []
+    outputs = [str(table)] if table is not None else []
     outputs += map(str, pngs)
     if recorder is not None and recorder.path is not None:
         outputs.append(str(recorder.path))
     timing = {"simulation_s": run.simulation, "plots_s": run.plots, "total_s": total}
+    run.ground = simulate.ground_balance(run.fld, data)
     record = run.record(
         args, status, simulated_s=t_end, rows=rows, outputs=outputs,
         timing={k: v for k, v in timing.items() if v == v}, max_froude=rec.max_froude,
-        signals=signals, notes=run.notes,
+        ground=run.ground, signals=signals, notes=run.notes,
     )  # fmt: skip
     try:
         metadata.write(run.out / RUN_JSON, record)
     except OSError as exc:
         run.notes.append(f"{run.out / RUN_JSON} could not be written: {exc}")
         code = code or EXIT_FAILED
-    _print_summary(run, status, t_end, rows, len(pngs), total, signals, recorder)
+    _print_summary(run, status, t_end, rows, len(pngs), total, signals, recorder, table)
     return code
 
 
-def _run_plots(args, run: _RunInfo, rec) -> list:
+def _table(args, run: _RunInfo, sink) -> Path | None:
+    """The run's table on disk: the CSV, or with --table-format parquet the Parquet file made
+    from it (the CSV, the run's journal, then goes; it stays if the Parquet file cannot be
+    written, named in run.notes)."""
+    from mjrft.app import simulate
+
+    if sink is None or not sink.path.exists():
+        return None
+    if args.table_format != "parquet":
+        return sink.path
+    try:
+        path = simulate.write_parquet(sink.path, run.out / RUN_PARQUET)
+    except Exception as exc:  # a full disk, or the CSV cut by the error that ended the run
+        run.notes.append(f"the Parquet table could not be written ({exc}); the rows are in "
+                         f"{sink.path}")  # fmt: skip
+        return sink.path
+    sink.path.unlink()
+    return path
+
+
+def _run_plots(args, run: _RunInfo, rec, table: Path | None) -> list:
     """The plots of the rows on disk (none with --no-plots); a plot that cannot be written is
     named in run.notes, and the run's other files are still written."""
     from mjrft.app import report, simulate
 
-    if args.no_plots or not rec.body_names:
+    if args.no_plots or not rec.body_names or table is None:
         return []
     fld = run.fld
     t0 = time.perf_counter()
     try:
-        plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
+        plots = simulate.Recording.from_file(table, rec.body_names)
         title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
-        pngs = report.plot_run(plots, fld.surface, run.out, title=title)
+        pngs = report.plot_run(plots, fld.surface, run.out, title=title, fmt=args.figure_format)
     except OSError as exc:
         run.notes.append(f"the plots could not be written: {exc}")
         return []
@@ -517,17 +551,34 @@ def _run_plots(args, run: _RunInfo, rec) -> list:
     return pngs
 
 
-def _print_summary(run: _RunInfo, status, t_end, rows, n_plots, total, signals, recorder) -> None:
+def _print_summary(
+    run: _RunInfo, status, t_end, rows, n_plots, total, signals, recorder, table
+) -> None:
     """`mjrft run`'s summary line on stdout; errors and notes on stderr."""
     model, fld, sim = run.model, run.fld, run.simulation
     rate = f"{t_end / sim:.2f}x real time" if sim == sim and sim > 0 else "no steps"
+    plots = f"plots {run.plots:.2f} s, " if run.plots == run.plots else ""
     print(
-        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rows} rows, "
-        f"{fld.n_elements} triangles, dt = {model.opt.timestep:g} s, {_integrator_name(model)}; "
-        f"simulation {sim:.2f} s wall ({rate}, the simulation alone), {total:.1f} s in all; "
-        f"wrote {run.out / RUN_CSV}, {RUN_JSON} and {n_plots} plots",
+        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rows} rows (one per "
+        f"{run.record_every} steps), {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
+        f"{_integrator_name(model)}; simulation {sim:.2f} s wall ({rate}, the simulation "
+        f"alone), {plots}{total:.1f} s in all; wrote {table or 'no table'}, {RUN_JSON} and "
+        f"{n_plots} figures",
         flush=True,
     )
+    if run.ground is not None:
+        g = run.ground
+        print(
+            f"  deforming ground: {g['excavated_m3']:.4g} m^3 cut, {g['lost_m3']:.4g} m^3 lost "
+            f"at the region's edge ({g['lost_fraction']:.3g} of the cut volume)"
+        )
+        if g["lost_m3"] > 0:
+            print(
+                f"mjrft run: {g['lost_m3']:.4g} m^3 of the deforming ground was cut where it "
+                "could not be placed (at the edge of mjrft:region) and is lost from the ground; "
+                "a region that keeps the intruders away from its edge conserves it",
+                file=sys.stderr,
+            )
     if status == "failed" and run.error:
         print(f"mjrft run: failed: {run.error}", file=sys.stderr)
     if signals:
@@ -687,14 +738,29 @@ def _add_run(sub) -> None:
     r.add_argument(
         "--no-plots",
         action="store_true",
-        help="write no PNG plots (the CSV, run.json and any recording are still written)",
+        help="draw no figures (the table, run.json and any recording are still written)",
+    )
+    r.add_argument(
+        "--figure-format",
+        choices=FIGURE_FORMATS,
+        default="png",
+        help="the figures' file format: png (raster, at most 2000 px a side), svg or pdf "
+        "(vector) (default: png)",
     )
     r.add_argument(
         "--record-every",
         type=_positive_int,
-        default=1,
+        default=None,
         metavar="K",
-        help="write one CSV row every K steps (default: 1, every step)",
+        help="write one table row every K steps (default: what the figures draw, about 2,000 "
+        "rows over the run: K = steps // 2000, at least 1; 1 for every step)",
+    )
+    r.add_argument(
+        "--table-format",
+        choices=TABLE_FORMATS,
+        default="csv",
+        help="the time series' file: csv (timeseries.csv) or parquet (timeseries.parquet, "
+        "made from the CSV the run streams to, which then goes) (default: csv)",
     )
     r.add_argument(
         "--overwrite",

@@ -263,19 +263,22 @@ class Recording:
 
     @classmethod
     def from_csv(cls, path: str | Path, body_names: list[str], max_rows: int = 20_000) -> Recording:
-        """A recording read back from a CSV written by CsvSink, every k-th row (and the last)
-        so that at most ``max_rows`` are held: enough for plots, bounded for any run length."""
-        with open(path) as fh:
-            columns = fh.readline().strip().split(",")
-            n = sum(1 for _ in fh)
+        """A recording read back from a CSV written by CsvSink (``from_file``)."""
+        return cls.from_file(path, body_names, max_rows)
+
+    @classmethod
+    def from_file(
+        cls, path: str | Path, body_names: list[str], max_rows: int = 20_000
+    ) -> Recording:
+        """A recording read back from a run's table (a CSV written by CsvSink, or the Parquet
+        file of ``write_parquet``), every k-th row (and the last) so that at most ``max_rows``
+        are held: enough for plots, bounded for any run length. Read with pyarrow (a rerun
+        dependency), values exactly as written (nan and inf included)."""
+        columns, table = read_table(path)
+        n = len(table)
         k = max(1, -(-n // max_rows))
-        rows = []
-        with open(path) as fh:
-            fh.readline()
-            for i, line in enumerate(fh):
-                if i % k == 0 or i == n - 1:
-                    rows.append(np.array(line.split(","), dtype=np.float64))
-        return cls(columns, body_names, rows)
+        keep = np.unique(np.append(np.arange(0, n, k), n - 1)) if n else np.arange(0)
+        return cls(columns, body_names, list(table[keep]))
 
     def array(self) -> np.ndarray:
         """(n_rows, n_columns) array of everything recorded so far."""
@@ -286,6 +289,75 @@ class Recording:
     def column(self, name: str) -> np.ndarray:
         """One recorded column by name."""
         return self.array()[:, self.columns.index(name)]
+
+
+def ground_balance(fld: GranularField, data: mujoco.MjData) -> dict[str, float] | None:
+    """The deforming ground's volume account of `data` since it was reset, or None if the
+    ground does not deform: ``excavated_m3`` (volume cut by the intruders), ``lost_m3`` (cut
+    volume that found no place on the grid to go, the engine's ``unplaced`` counter: cut at the
+    edge of ``mjrft:region``, whose outer ring of vertices never changes, or under a footprint
+    that covers the whole region; it is gone from the ground), ``lost_fraction`` (lost_m3 /
+    excavated_m3, 0 when nothing was cut) and ``edge_vertices`` (footprint vertices on that
+    outer ring, summed over the updates: where an intruder met ground that cannot deform)."""
+    if not fld.deforms:
+        return None
+    counters = fld.soil(data).counters
+    cut, lost = counters["excavated"], counters["unplaced"]
+    return {
+        "excavated_m3": cut,
+        "lost_m3": lost,
+        "lost_fraction": lost / cut if cut > 0 else 0.0,
+        "edge_vertices": int(counters["edge"]),
+    }
+
+
+#: Table formats of ``mjrft run`` (``--table-format``).
+TABLE_FORMATS = ("csv", "parquet")
+
+
+def read_table(path: str | Path) -> tuple[list[str], np.ndarray]:
+    """(column names, (n_rows, n_columns) float64 array) of a run's table: a CSV written by
+    CsvSink or a Parquet file (by its suffix)."""
+    import pyarrow.csv
+    import pyarrow.parquet
+
+    path = Path(path)
+    if path.suffix == ".parquet":
+        table = pyarrow.parquet.read_table(path)
+    else:
+        # No null values: CsvSink writes nan as 'nan', which must stay NaN.
+        convert = pyarrow.csv.ConvertOptions(null_values=[], strings_can_be_null=False)
+        table = pyarrow.csv.read_csv(path, convert_options=convert)
+    columns = list(table.column_names)
+    if table.num_rows == 0:
+        return columns, np.zeros((0, len(columns)))
+    return columns, np.column_stack([table.column(c).to_numpy() for c in columns]).astype(float)
+
+
+def write_parquet(csv: str | Path, path: str | Path) -> Path:
+    """Write the run's CSV table `csv` as a Parquet file `path` (float64 columns, zstd),
+    atomically; the CSV is left in place."""
+    import pyarrow
+    import pyarrow.parquet
+
+    from mjrft.app.report import atomic_path
+
+    columns, values = read_table(csv)
+    table = pyarrow.table({c: values[:, i] for i, c in enumerate(columns)})
+    with atomic_path(path) as tmp:
+        pyarrow.parquet.write_table(table, tmp, compression="zstd")
+    return Path(path)
+
+
+#: Rows a run's figures draw: each line is a min/max envelope over ``report.LINE_BINS`` = 1000
+#: runs of rows, two points per run.
+FIGURE_ROWS = 2000
+
+
+def figure_record_every(n_steps: int) -> int:
+    """The recording period [steps] that gives a run of `n_steps` steps about FIGURE_ROWS rows
+    (at least every step): what its figures draw, and no more."""
+    return max(1, n_steps // FIGURE_ROWS)
 
 
 def _sensor_columns(model: mujoco.MjModel) -> list[str]:
