@@ -16,7 +16,6 @@ from pathlib import Path
 
 from mjrft.app.recording_defaults import (
     DEFAULT_CONNECT_URL,
-    DEFAULT_FORCE_SCALE,
     DEFAULT_MAX_ARROWS,
     DEFAULT_STRESS_MAX_PA,
 )
@@ -960,9 +959,12 @@ def _add_view_model(sub) -> None:
         help="open MODEL in MuJoCo's interactive viewer with the granular field acting",
         description=(
             "Simulate MODEL in real time in MuJoCo's interactive viewer (mujoco.viewer) with the "
-            "granular RFT field, drawing each intruding body's RFT force as an orange "
-            "arrow from its CoM (and with --triangle-arrows the per-triangle forces in blue). "
-            "Needs a display; on a headless machine record with `mjrft run --rrd` instead."
+            "granular RFT field, drawing each intruding body's RFT force as an arrow from its "
+            "CoM (and with --triangle-arrows the per-triangle forces), in the colours farthest "
+            "from the model's own, scaled so that no arrow is longer than 30%% of its body's "
+            "size unless --force-scale fixes the scale. --track BODY follows a body with the "
+            "camera. Needs a display; on a headless machine record with `mjrft run --rrd` "
+            "instead."
         ),
     )
     v.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
@@ -975,9 +977,16 @@ def _add_view_model(sub) -> None:
     v.add_argument(
         "--force-scale",
         type=_positive_float,
-        default=DEFAULT_FORCE_SCALE,
+        default=None,
         metavar="M_PER_N",
-        help=f"arrow length per newton [m/N] (default: {DEFAULT_FORCE_SCALE:g})",
+        help="arrow length per newton [m/N] (default: automatic, no arrow longer than 30%% of "
+        "its body's size)",
+    )
+    v.add_argument(
+        "--track",
+        default=None,
+        metavar="BODY",
+        help="a camera that follows BODY (a body name, e.g. torso) instead of a free camera",
     )
     v.add_argument(
         "--triangle-arrows",
@@ -989,6 +998,8 @@ def _add_view_model(sub) -> None:
 
 
 def _view(args: argparse.Namespace) -> int:
+    import mujoco
+
     from mjrft.app import mujoco_viewer, simulate
 
     if not mujoco_viewer.has_display():
@@ -998,9 +1009,11 @@ def _view(args: argparse.Namespace) -> int:
         )
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, args.model)
+    mujoco_viewer.track(mujoco.MjvCamera(), model, args.track)  # a missing body, named at once
     data = simulate.reset_data(model, keyframe)
     mujoco_viewer.launch(model, fld, data=data, ctrl=ctrl, force_scale=args.force_scale,
-                  triangles=args.triangle_arrows, duration=args.duration)  # fmt: skip
+                         triangles=args.triangle_arrows, duration=args.duration,
+                         track_body=args.track)  # fmt: skip
     return 0
 
 
