@@ -209,3 +209,16 @@ def test_a_failed_write_is_cut_back_to_the_last_whole_row(tmp_path, monkeypatch)
     with pytest.raises(simulate.OutputError):
         sink.close()
     assert (tmp_path / "t.csv").stat().st_size == size  # nothing written past the gap
+
+
+def test_a_run_from_another_thread_needs_no_signal_handlers(tmp_path):
+    """Python delivers signals to the main thread only, and installs handlers only there."""
+    import threading
+
+    codes = []
+    args = ["run", *_sphere(tmp_path / "out", 0.01), "--no-plots"]
+    worker = threading.Thread(target=lambda: codes.append(cli.main(args)))
+    worker.start()
+    worker.join()
+    assert codes == [0]
+    assert json.loads((tmp_path / "out" / cli.RUN_JSON).read_text())["status"] == "completed"

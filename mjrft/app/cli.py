@@ -11,6 +11,7 @@ import difflib
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -213,6 +214,8 @@ class _StopSignals:
         self._previous: dict[int, object] = {}
 
     def __enter__(self) -> _StopSignals:
+        if threading.current_thread() is not threading.main_thread():
+            return self  # Python delivers signals to the main thread only
         for name in STOP_SIGNALS:
             sig = getattr(signal, name, None)
             if sig is not None and signal.getsignal(sig) is not signal.SIG_IGN:
