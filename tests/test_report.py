@@ -247,3 +247,37 @@ def test_figures_in_each_format(tmp_path, fmt, magic):
         assert p.read_bytes().startswith(magic), p
     with pytest.raises(ValueError, match="figure format 'jpg'; valid: png, svg, pdf"):
         report.plot_run(_bodies_recording(), 0.0, tmp_path, fmt="jpg")
+
+
+def test_panel_counts_are_the_figures_panels():
+    for rec in (_bodies_recording(), _recording(12, 500), _recording(2, 300)):
+        t, bodies = report.run_series(rec)
+        counts = report.panel_counts(t, bodies, 0.0)
+        figures = {"forces_vs_time": report.time_figure(t, bodies),
+                   "forces_vs_depth": report.position_figure(bodies, 0.0),
+                   "rft_summary": report.paper_figure(t, bodies, 0.0)}  # fmt: skip
+        for name, fig in figures.items():
+            assert counts[name] == (len(_panels(fig)) if fig is not None else 0), name
+
+
+def test_figures_are_drawn_by_priority_while_their_estimated_cost_fits(tmp_path, monkeypatch):
+    """A clock that advances 0.4 s per panel written: the summary (5 panels, estimated at
+    PANEL_S each) is drawn and takes 2 s; forces_vs_time (3 panels, now estimated at 0.4 s
+    each) would end at 3.2 s > 2.5 s and is left out; forces_vs_depth (1 panel) fits."""
+    import matplotlib.figure  # noqa: F401  (imported: no import cost in the estimate)
+
+    now = [0.0]
+    save = report.save_figure
+
+    def timed_save(fig, path):
+        now[0] += 0.4 * len(_panels(fig))
+        return save(fig, path)
+
+    monkeypatch.setattr(report, "save_figure", timed_save)
+    rec = _bodies_recording()
+    paths, skipped = report.plot_run_within(rec, 0.0, tmp_path, 2.5, clock=lambda: now[0])
+    assert [p.name for p in paths] == ["forces_vs_depth.png", "rft_summary.png"]
+    assert skipped == ["forces_vs_time"] and now[0] == pytest.approx(2.4)
+    now[0] = 0.0
+    assert report.plot_run_within(rec, 0.0, tmp_path, 0.0, clock=lambda: now[0]) == (
+        [], list(report.FIGURE_PRIORITY))  # fmt: skip

@@ -85,7 +85,7 @@ def test_a_signal_after_the_loop_waits_for_the_files(tmp_path, signals, code):
     came (so a shell loop around it stops)."""
     out = tmp_path / "out"
     hook = f"SIGNALS = [{', '.join('signal.' + s for s in signals)}]\n" + _SIGNAL_BEFORE_PLOTS
-    proc = _child(tmp_path, _sphere(out, 0.3), hook)
+    proc = _child(tmp_path, _sphere(out, 0.3, "--all-figures"), hook)
     record, text = _finished(out, proc, code, "completed")
     assert record["signals"] == signals
     assert record["simulated_s"] == pytest.approx(0.3)

@@ -37,7 +37,8 @@ def test_the_default_table_has_about_the_rows_the_figures_draw(tmp_path, capsys)
 
 def test_a_parquet_table_holds_exactly_the_csvs_values(tmp_path):
     csv = _run(tmp_path / "csv", "--duration", "0.3")
-    parquet = _run(tmp_path / "pq", "--duration", "0.3", "--table-format", "parquet")
+    parquet = _run(tmp_path / "pq", "--duration", "0.3", "--table-format", "parquet",
+                   "--all-figures")  # fmt: skip
     assert not (tmp_path / "pq" / cli.RUN_CSV).exists()  # the journal goes
     assert parquet["outputs"][0] == str(tmp_path / "pq" / cli.RUN_PARQUET)
     cols_a, a = simulate.read_table(tmp_path / "csv" / cli.RUN_CSV)
@@ -58,7 +59,7 @@ def test_a_run_folder_with_a_parquet_table_or_an_svg_figure_holds_a_run(tmp_path
 
 @pytest.mark.parametrize("fmt", ["svg", "pdf"])
 def test_figure_format(tmp_path, fmt):
-    record = _run(tmp_path, "--duration", "0.3", "--figure-format", fmt)
+    record = _run(tmp_path, "--duration", "0.3", "--figure-format", fmt, "--all-figures")
     figures = sorted(p.name for p in tmp_path.glob(f"*.{fmt}"))
     assert figures == sorted(f"{n}.{fmt}" for n in cli.RUN_FIGURES)
     assert not list(tmp_path.glob("*.png"))
@@ -76,3 +77,15 @@ def test_the_table_is_read_back_exactly_nan_and_inf_included(tmp_path):
     np.testing.assert_array_equal(rec.array(), np.array(rows))
     simulate.write_parquet(tmp_path / "t.csv", tmp_path / "t.parquet")
     np.testing.assert_array_equal(simulate.read_table(tmp_path / "t.parquet")[1], np.array(rows))
+
+
+def test_a_completed_runs_figures_stay_within_its_simulation_time(tmp_path, capsys):
+    """0.1 s of a sphere takes a few milliseconds: no figure fits, each is named, and the table
+    is not even read back; --all-figures draws them all."""
+    record = _run(tmp_path / "a", "--duration", "0.1")
+    assert record["figures_skipped"] == ["rft_summary", "forces_vs_time", "forces_vs_depth"]
+    assert record.get("timing", {}).get("plots_s", 0.0) <= record["timing"]["simulation_s"]
+    assert not list((tmp_path / "a").glob("*.png"))
+    assert "figures not drawn, to stay within the simulation's" in capsys.readouterr().out
+    every = _run(tmp_path / "b", "--duration", "0.1", "--all-figures")
+    assert every["figures_skipped"] == [] and len(every["outputs"]) == 4

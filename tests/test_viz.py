@@ -517,7 +517,7 @@ def test_cli_run_writes_the_recording_with_the_requested_decimation_and_scale(tm
     code = cli.main(
         ["run", str(MODELS / "sphere_drop.xml"), "--duration", "0.05", "--out", str(out)]
         + ["--rrd", str(rrd), "--rrd-every", "3", "--max-arrows", "100000"]
-        + ["--arrow-scale", "0.25", "--stress-max", "5000"]
+        + ["--arrow-scale", "0.25", "--stress-max", "5000", "--all-figures"]
     )
     assert code == 0
     printed = capsys.readouterr().out

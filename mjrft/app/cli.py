@@ -372,6 +372,7 @@ class _RunInfo:
         self.notes: list[str] = []  # what could not be written besides the run's own error
         self.ground: dict | None = None  # simulate.ground_balance at the end
         self.record_every = 1  # steps per row of the table
+        self.figures_skipped: list[str] = []  # left out to stay within the simulation's time
 
     def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
         """The run.json record (``mjrft.app.metadata``)."""
@@ -483,7 +484,7 @@ def _finish_run(
     last = sink.last_written if sink is not None else None
     t_end = float(last[0]) if last is not None else 0.0
     table = _table(args, run, sink)
-    pngs = _run_plots(args, run, rec, table) if rows else []
+    pngs = _run_plots(args, run, rec, table, everything=status != "completed") if rows else []
     if signals and code == 0:  # completed, then asked to stop: every file is complete
         code = STOP_SIGNALS[signals[0]][1]
     total = time.perf_counter() - args.started[0]
@@ -496,7 +497,7 @@ def _finish_run(
     record = run.record(
         args, status, simulated_s=t_end, rows=rows, outputs=outputs,
         timing={k: v for k, v in timing.items() if v == v}, max_froude=rec.max_froude,
-        ground=run.ground, signals=signals, notes=run.notes,
+        ground=run.ground, figures_skipped=run.figures_skipped, signals=signals, notes=run.notes,
     )  # fmt: skip
     try:
         metadata.write(run.out / RUN_JSON, record)
@@ -527,19 +528,32 @@ def _table(args, run: _RunInfo, sink) -> Path | None:
     return path
 
 
-def _run_plots(args, run: _RunInfo, rec, table: Path | None) -> list:
-    """The plots of the rows on disk (none with --no-plots); a plot that cannot be written is
-    named in run.notes, and the run's other files are still written."""
+def _run_plots(args, run: _RunInfo, rec, table: Path | None, everything: bool) -> list:
+    """The figures of the rows on disk (none with --no-plots): every figure with --all-figures
+    or `everything` (a run that stopped early: what it computed is shown), else those that fit
+    in the simulation's wall time (``report.plot_run_within``). A figure that cannot be written
+    is named in run.notes, and the run's other files are still written."""
     from mjrft.app import report, simulate
 
     if args.no_plots or not rec.body_names or table is None:
         return []
     fld = run.fld
+    budget = run.simulation if run.simulation == run.simulation else 0.0
+    if not (args.all_figures or everything) and budget < report.figure_floor_s():
+        run.figures_skipped = list(report.FIGURE_PRIORITY)  # not even one would fit
+        return []
     t0 = time.perf_counter()
     try:
         plots = simulate.Recording.from_file(table, rec.body_names)
         title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
-        pngs = report.plot_run(plots, fld.surface, run.out, title=title, fmt=args.figure_format)
+        if args.all_figures or everything:
+            pngs = report.plot_run(plots, fld.surface, run.out, title=title,
+                                   fmt=args.figure_format)  # fmt: skip
+        else:  # within the simulation's own wall time, counted from reading the table
+            budget -= time.perf_counter() - t0
+            pngs, run.figures_skipped = report.plot_run_within(
+                plots, fld.surface, run.out, budget, title=title, fmt=args.figure_format
+            )
     except OSError as exc:
         run.notes.append(f"the plots could not be written: {exc}")
         return []
@@ -568,6 +582,11 @@ def _print_summary(
         f"{n_plots} figures",
         flush=True,
     )
+    if run.figures_skipped:
+        print(
+            f"  figures not drawn, to stay within the simulation's {sim:.2f} s: "
+            f"{', '.join(run.figures_skipped)} (--all-figures draws every figure)"
+        )
     if run.ground is not None:
         g = run.ground
         print(
@@ -737,10 +756,19 @@ def _add_run(sub) -> None:
         help="output directory (created; one that holds a run needs --overwrite)",
     )
     _add_scene_options(r)
-    r.add_argument(
+    figures = r.add_mutually_exclusive_group()
+    figures.add_argument(
         "--no-plots",
         action="store_true",
         help="draw no figures (the table, run.json and any recording are still written)",
+    )
+    figures.add_argument(
+        "--all-figures",
+        action="store_true",
+        help="draw every figure whatever it costs (default: the figures of a completed run, "
+        "the summary first, are drawn from the table after the run only while their cost stays "
+        "within the simulation's own wall time, those left out named; a run that stopped early "
+        "draws them all)",
     )
     r.add_argument(
         "--figure-format",

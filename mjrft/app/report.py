@@ -15,6 +15,7 @@ import functools
 import math
 import os
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -725,6 +726,99 @@ def plot_run(
         for f, name in zip(figures, RUN_FIGURES, strict=True)
         if f is not None
     ]
+
+
+def panel_counts(
+    t: np.ndarray, bodies: list[BodySeries], surface_z: float | Surface
+) -> dict[str, int]:
+    """The number of panels each figure of ``plot_run`` will have (0: not drawn), by
+    RUN_FIGURES name, computed from the data alone (no matplotlib): what a figure costs."""
+    entered = [b for b in bodies if b.entered]
+    torque = any(b.has_torque for b in entered)
+    if len(entered) > MAX_BODY_COLUMNS:
+        n_time = 3 * (2 if torque else 1)
+    else:
+        n_time = len(entered) + sum(b.has_torque for b in entered)
+    inside = [b for b in entered if goes_in(b.com, surface_z)]
+    shown = shown_bodies([b.name for b in entered], [b.peak_force for b in entered],
+                         MAX_SUMMARY_BODIES)  # fmt: skip
+    return {
+        "forces_vs_time": n_time,
+        "forces_vs_depth": min(len(inside), MAX_POSITION_PANELS),
+        "rft_summary": len(_summary_panels(entered, shown, surface_z)) if entered else 0,
+    }
+
+
+#: The order in which ``plot_run_within`` draws the figures: the summary holds the most in one
+#: figure, the time series next.
+FIGURE_PRIORITY = ("rft_summary", "forces_vs_time", "forces_vs_depth")
+#: Estimates of a figure's cost before any was timed, measured on the Xeon VM of RESULTS.md
+#: (benchmarks/plots.py): importing matplotlib [s] and drawing and writing one panel [s].
+MATPLOTLIB_IMPORT_S, PANEL_S = 0.5, 0.12
+
+
+def figure_floor_s() -> float:
+    """The least a figure can cost [s] by the estimates: one panel, and importing matplotlib
+    if it is not imported yet (``plot_run_within``)."""
+    import sys
+
+    return PANEL_S + (0.0 if "matplotlib.figure" in sys.modules else MATPLOTLIB_IMPORT_S)
+
+
+@_styled
+def plot_run_within(
+    rec,
+    surface_z: float | Surface,
+    out_dir: str | os.PathLike,
+    budget_s: float,
+    title: str | None = None,
+    fmt: str = "png",
+    clock=time.perf_counter,
+) -> tuple[list[Path], list[str]]:
+    """``plot_run``'s figures, drawn in FIGURE_PRIORITY order only while their cost stays
+    within `budget_s` [s] (e.g. the simulation's wall time), counted from this call: a figure
+    is drawn if the time spent so far plus its estimated cost fits. The estimate is its panels
+    (``panel_counts``) times the cost per panel measured on the figures drawn so far (PANEL_S
+    before the first, plus MATPLOTLIB_IMPORT_S if matplotlib is not imported yet).
+
+    Returns:
+      (the paths written, in RUN_FIGURES order; the names of the figures left out for the
+      budget, in FIGURE_PRIORITY order).
+    """
+    import sys
+
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}; valid: {', '.join(FIGURE_FORMATS)}")
+    start = clock()
+    t, bodies = run_series(rec)
+    panels = panel_counts(t, bodies, surface_z)
+    build = {
+        "forces_vs_time": lambda: time_figure(t, bodies, title),
+        "forces_vs_depth": lambda: position_figure(bodies, surface_z, title),
+        "rft_summary": lambda: paper_figure(t, bodies, surface_z, title),
+    }
+    written: dict[str, Path] = {}
+    skipped: list[str] = []
+    drawn_panels, drawing_s = 0, 0.0
+    for name in FIGURE_PRIORITY:
+        if not panels[name]:
+            continue
+        per_panel = drawing_s / drawn_panels if drawn_panels else PANEL_S
+        estimate = panels[name] * per_panel
+        if "matplotlib.figure" not in sys.modules:
+            estimate += MATPLOTLIB_IMPORT_S
+        if clock() - start + estimate > budget_s:
+            skipped.append(name)
+            continue
+        import matplotlib.figure  # noqa: F401  (imported here, timed apart from the drawing)
+
+        t0 = clock()
+        fig = build[name]()
+        if fig is not None:
+            written[name] = save_figure(fig, Path(out_dir) / f"{name}.{fmt}")
+        drawing_s += clock() - t0
+        drawn_panels += panels[name]
+    return [written[n] for n in RUN_FIGURES if n in written], skipped
 
 
 @_styled
