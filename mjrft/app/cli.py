@@ -277,14 +277,14 @@ def _on_sigterm(signum, frame) -> None:
 def _run(args: argparse.Namespace) -> int:
     with _StopSignals() as stop:
         try:
-            run = _prepare_run(args)
+            # A signal that escapes _run_prepared came before its first file was written.
+            return _run_prepared(args, _prepare_run(args), stop)
         except Terminated as exc:
             print(
                 f"mjrft run: {exc} during start-up, before the first step: nothing was written",
                 file=sys.stderr,
             )
             return exc.code
-        return _run_prepared(args, run, stop)
 
 
 def _prepare_run(args: argparse.Namespace) -> _RunInfo:
