@@ -261,9 +261,10 @@ def test_panel_counts_are_the_figures_panels():
 
 
 def test_figures_are_drawn_by_priority_while_their_estimated_cost_fits(tmp_path, monkeypatch):
-    """A clock that advances 0.4 s per panel written: the summary (5 panels, estimated at
-    PANEL_S each) is drawn and takes 2 s; forces_vs_time (3 panels, now estimated at 0.4 s
-    each) would end at 3.2 s > 2.5 s and is left out; forces_vs_depth (1 panel) fits."""
+    """A clock that advances 0.4 s per panel written, a budget of 2.6 s: the summary (5 panels,
+    estimated at PANEL_S each, times ESTIMATE_MARGIN) is drawn and takes 2 s; forces_vs_time
+    (3 panels, now estimated at 0.4 s each) would end at 2 + 1.25 x 1.2 = 3.5 s and is left
+    out; forces_vs_depth (1 panel: 2 + 1.25 x 0.4 = 2.5 s) fits."""
     import matplotlib.figure  # noqa: F401  (imported: no import cost in the estimate)
 
     now = [0.0]
@@ -275,7 +276,7 @@ def test_figures_are_drawn_by_priority_while_their_estimated_cost_fits(tmp_path,
 
     monkeypatch.setattr(report, "save_figure", timed_save)
     rec = _bodies_recording()
-    paths, skipped = report.plot_run_within(rec, 0.0, tmp_path, 2.5, clock=lambda: now[0])
+    paths, skipped = report.plot_run_within(rec, 0.0, tmp_path, 2.6, clock=lambda: now[0])
     assert [p.name for p in paths] == ["forces_vs_depth.png", "rft_summary.png"]
     assert skipped == ["forces_vs_time"] and now[0] == pytest.approx(2.4)
     now[0] = 0.0
