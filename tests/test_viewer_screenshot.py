@@ -18,12 +18,19 @@ CHILD = textwrap.dedent(
     """
     import json, sys
     import mujoco
+
+    # An OpenGL context first, or this child fails here (and the test is skipped).
+    probe = mujoco.MjModel.from_xml_string("<mujoco><worldbody/></mujoco>")
+    mujoco.Renderer(probe, 8, 8)
+    print("GL_OK", flush=True)
+
     import numpy as np
     from mjrft.app import mujoco_viewer as mv, simulate
     from mjrft.field.granular_field import GranularField
 
     xml, steps = sys.argv[1], int(sys.argv[2])
-    model = simulate.load_model(xml) if xml.endswith(".xml") else simulate.load_model(xml)
+    model = simulate.load_model(xml)
+    renderer = mujoco.Renderer(model, 240, 320)
     fld = GranularField(model)
     data = simulate.reset_data(model)
     arrows = mv.ForceArrows(model, fld)  # the automatic scale, carried over the steps
@@ -31,7 +38,6 @@ CHILD = textwrap.dedent(
     for _ in range(steps):
         mujoco.mj_step(model, data)
         mv.draw_forces(scratch, model, data, fld, arrows=arrows, triangles=True)
-    renderer = mujoco.Renderer(model, 240, 320)
     cam = mujoco.MjvCamera()
     mujoco.mjv_defaultFreeCamera(model, cam)
     body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, fld.body_ids[0])
@@ -80,8 +86,9 @@ def _screenshot(scene: str, steps: int) -> dict:
         env = {**os.environ, "MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
         proc = subprocess.run([sys.executable, "-c", CHILD, scene, str(steps)],
                               capture_output=True, text=True, env=env, timeout=300)  # fmt: skip
-        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
-        if lines:
+        if "GL_OK" in proc.stdout.splitlines():  # rendering works: the rest must
+            lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+            assert lines, proc.stderr
             return json.loads(lines[0][len("RESULT ") :])
         last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
     pytest.skip(f"no headless OpenGL here (MUJOCO_GL=egl and osmesa both failed: {last})")
