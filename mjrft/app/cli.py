@@ -992,10 +992,10 @@ def _add_view_model(sub) -> None:
             "Simulate MODEL in real time in MuJoCo's interactive viewer (mujoco.viewer) with the "
             "granular RFT field, drawing each intruding body's RFT force as an arrow from its "
             "CoM (and with --triangle-arrows the per-triangle forces), in the colours farthest "
-            "from the model's own, scaled so that no arrow is longer than 30%% of its body's "
-            "size unless --force-scale fixes the scale. --track BODY follows a body with the "
-            "camera. Needs a display; on a headless machine record with `mjrft run --rrd` "
-            "instead."
+            "from the model's own, scaled so that no body arrow is longer than its body's size "
+            "(a body's longest triangle arrow 30% of it) unless --force-scale fixes the scale. "
+            "--track BODY follows a body with the camera. Needs a display; on a headless "
+            "machine record with `mjrft run --rrd` instead."
         ),
     )
     v.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
@@ -1010,8 +1010,8 @@ def _add_view_model(sub) -> None:
         type=_positive_float,
         default=None,
         metavar="M_PER_N",
-        help="arrow length per newton [m/N] (default: automatic, no arrow longer than 30%% of "
-        "its body's size)",
+        help="arrow length per newton [m/N] (default: automatic, no body arrow longer than its "
+        "body's size)",
     )
     v.add_argument(
         "--track",
