@@ -1,91 +1,101 @@
-"""Wall time of `mjrft run`'s figures (mjrft.app.report.plot_run) for every shipped model.
+"""What `mjrft run`'s figures cost against its simulation, for every shipped model.
 
-Run: python benchmarks/plots.py [--durations 5 19.999] [--repeats 3] [--models NAME ...]
-For each model in models/ and each duration, simulates the model at its default options with
-its rows streamed to a CSV (as `mjrft run` does), reads the CSV back as `mjrft run` does
-(Recording.from_csv: at most 20,000 rows, so 19.999 s at dt = 1 ms is the largest recording the
-figures ever get), and times plot_run: the first call (which includes importing matplotlib) and
-the best of --repeats further calls. Prints the simulation's wall time beside it, the size of
-each PNG and the machine's CPU.
+Run: python benchmarks/plots.py [--durations 1 10 60] [--repeats 3] [--models NAME ...]
+     [--figure-format png] [--all-figures]
+For each model in models/ and each duration, runs `mjrft run MODEL --duration D --out TMP` in a
+fresh process, as a user would (default options: the table decimated to about 2,000 rows, the
+figures drawn from it after the run within the simulation's wall time; with --all-figures every
+figure), and reads the parts run.json records: the simulation's wall time and the figures'
+(reading the table back, importing matplotlib, drawing and writing the figures). Prints the
+medians over --repeats runs, their ratio, the command's total, the rows, the figures written and
+those left out, and the machine's CPU. Writes benchmarks/results/plots.csv (plots_all.csv with
+--all-figures).
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import json
+import os
 import platform
+import statistics
+import subprocess
 import sys
 import tempfile
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run from a checkout without installing
-
-from mjrft.app import metadata, report, simulate  # noqa: E402
-from mjrft.field.granular_field import GranularField  # noqa: E402
+RESULTS = ROOT / "benchmarks" / "results"
 
 
-@dataclass
-class Run:
-    """A simulated model as `mjrft run` hands it to plot_run."""
-
-    rec: simulate.Recording  #: read back from the CSV
-    surface_z: float  #: free-surface height [m]
-    title: str  #: as `mjrft run` titles its figures
-    wall_s: float  #: the simulation's wall time [s]
-
-
-def simulate_to_csv(name: str, duration: float, folder: Path) -> Run:
-    """Simulate models/<name>.xml for `duration` s, streaming its rows to a CSV in `folder`."""
-    model = simulate.load_model(ROOT / "models" / f"{name}.xml")
-    fld = GranularField(model)
-    columns = simulate.new_recording(model, fld).columns
-    sink = simulate.CsvSink(folder / f"{name}.csv", columns)
-    rec = simulate.Recording(columns, [b.name for b in fld.bodies], sink=sink)
-    t0 = time.perf_counter()
-    simulate.run(model, duration, fld=fld, recording=rec)
-    wall = time.perf_counter() - t0
-    sink.close()
-    plots = simulate.Recording.from_csv(sink.path, rec.body_names)
-    title = f"{name}.xml: {fld.scene.material.name}, {fld.n_elements} triangles"
-    return Run(plots, fld.surface_z, title, wall)
+def cpu() -> str:
+    """The CPU model (from /proc/cpuinfo where there is one)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            names = [ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")]
+        return names[0] if names else platform.processor()
+    except OSError:
+        return platform.processor() or "unknown"
 
 
-def time_plots(run: Run, folder: Path, repeats: int) -> tuple[float, float, list]:
-    """(first call [s], best of `repeats` more [s], PNG (width, height) [px]) of plot_run."""
-    from PIL import Image
-
-    times = []
-    for _ in range(1 + repeats):
-        t0 = time.perf_counter()
-        paths = report.plot_run(run.rec, run.surface_z, folder, title=run.title)
-        times.append(time.perf_counter() - t0)
-    sizes = [Image.open(p).size for p in paths]
-    return times[0], min(times[1:], default=times[0]), sizes
+def run_once(name: str, duration: float, fmt: str, every: bool) -> dict:
+    """One `mjrft run` of a shipped model; run.json's timings, rows and outputs."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        cmd = [sys.executable, "-m", "mjrft.app.cli", "run", name, "--duration", str(duration),
+               "--out", str(out), "--figure-format", fmt]  # fmt: skip
+        cmd += ["--all-figures"] if every else []
+        env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+        subprocess.run(cmd, check=True, capture_output=True, env=env)
+        record = json.loads((out / "run.json").read_text())
+    timing = record["timing"]
+    return {
+        "simulation_s": timing["simulation_s"],
+        "plots_s": timing.get("plots_s", 0.0),
+        "total_s": timing["total_s"],
+        "rows": record["rows"],
+        "figures": len(record["outputs"]) - 1,
+        "left_out": len(record["figures_skipped"]),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--durations", type=float, nargs="+", default=[5.0, 19.999])
+    ap.add_argument("--durations", type=float, nargs="+", default=[1.0, 10.0, 60.0])
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--figure-format", default="png", choices=("png", "svg", "pdf"))
+    ap.add_argument("--all-figures", action="store_true")
     names = sorted(p.stem for p in (ROOT / "models").glob("*.xml"))
     ap.add_argument("--models", nargs="+", default=names)
     args = ap.parse_args()
-    print(f"CPU: {metadata.machine()['cpu'] or 'unknown'}; Python {platform.python_version()}")
-    with tempfile.TemporaryDirectory() as tmp:
-        for name in args.models:
-            for duration in args.durations:
-                folder = Path(tmp) / f"{name}_{duration:g}"
-                run = simulate_to_csv(name, duration, Path(tmp))
-                first, best, sizes = time_plots(run, folder, args.repeats)
-                px = " ".join(f"{w}x{h}" for w, h in sizes)
-                print(
-                    f"{name:20s} {duration:7.3f} s, {len(run.rec.rows):6d} rows, "
-                    f"{len(run.rec.body_names)} bodies: simulation {run.wall_s:5.2f} s, "
-                    f"plot_run first {first:5.2f} s, best {best:5.2f} s; PNGs {px}",
-                    flush=True,
-                )
+    print(f"CPU: {cpu()}, {os.cpu_count()} cores; Python {platform.python_version()}")
+    rows = []
+    for name in args.models:
+        for duration in args.durations:
+            runs = [run_once(name, duration, args.figure_format, args.all_figures)
+                    for _ in range(args.repeats)]  # fmt: skip
+            row = {"model": name, "duration_s": duration, "format": args.figure_format}
+            for key in ("simulation_s", "plots_s", "total_s"):
+                row[key] = statistics.median(r[key] for r in runs)
+            row["plots_per_simulation"] = row["plots_s"] / row["simulation_s"]
+            row["rows"], row["figures"] = runs[0]["rows"], runs[0]["figures"]
+            row["left_out"] = runs[0]["left_out"]
+            rows.append(row)
+            print(
+                f"{name:20s} {duration:5g} s: simulation {row['simulation_s']:6.2f} s, figures "
+                f"{row['plots_s']:5.2f} s ({row['plots_per_simulation']:5.2f}x), command "
+                f"{row['total_s']:6.2f} s; {row['rows']} rows, {row['figures']} figures "
+                f"({row['left_out']} left out)",
+                flush=True,
+            )
+    out = RESULTS / ("plots_all.csv" if args.all_figures else "plots.csv")
+    RESULTS.mkdir(exist_ok=True)
+    with out.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

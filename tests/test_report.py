@@ -149,3 +149,136 @@ def test_titles_carry_the_run_title():
     t, bodies = report.run_series(rec)
     fig = report.paper_figure(t, bodies, 0.0, "sphere_drop.xml: glass_beads, 2976 triangles")
     assert fig._suptitle.get_text().startswith("sphere_drop.xml: glass_beads, 2976 triangles\n")
+
+
+# ----------------------------------------------------------------------------------------------
+# Which figures and panels a run gets: never an empty panel, depth only for a CoM that goes in.
+
+
+def _bodies_recording(n_rows: int = 400) -> Recording:
+    """Three bodies: 'leg' sinks 2 cm (CoM below the surface), feels a vertical force, a
+    lateral one and a torque; 'torso' feels a vertical force with its CoM 3 cm above the surface
+    throughout (its belly touches); 'arm' never touches the medium (no force)."""
+    t = np.linspace(0.0, 1.0, n_rows)
+    zero = np.zeros(n_rows)
+    com = {"leg": np.column_stack([zero, zero, 0.01 - 0.03 * t]),
+           "torso": np.column_stack([zero, zero, 0.03 + 0.005 * np.sin(t)]),
+           "arm": np.column_stack([zero + 0.1, zero, zero + 0.2])}  # fmt: skip
+    force = {"leg": np.column_stack([0.1 * np.sin(6 * t), zero, 2.0 * t]),
+             "torso": np.column_stack([1e-18 * np.cos(t), zero, 3.0 * t]),
+             "arm": np.zeros((n_rows, 3))}  # fmt: skip
+    torque = {"leg": np.column_stack([1e-3 * t, zero, zero]),
+              "torso": np.zeros((n_rows, 3)), "arm": np.zeros((n_rows, 3))}  # fmt: skip
+    columns, blocks = ["time_s"], [t[:, None]]
+    for b in com:
+        columns += [f"{b}_com_{a}_m" for a in "xyz"]
+        columns += [f"{b}_rft_force_{a}_N" for a in "xyz"]
+        columns += [f"{b}_rft_torque_{a}_Nm" for a in "xyz"]
+        blocks += [com[b], force[b], torque[b]]
+    return Recording(columns, list(com), rows=list(np.column_stack(blocks)))
+
+
+def _panels(fig) -> list:
+    """The figure's data panels (not colour bars)."""
+    return [ax for ax in fig.axes if ax.get_title()]
+
+
+def _assert_no_empty_panel(fig) -> None:
+    for ax in _panels(fig):
+        peaks = [np.max(np.abs(ln.get_ydata())) for ln in ax.get_lines()]
+        floor = report.FORCE_FLOOR_N if "torque" not in ax.get_title() else 1e-9 * 1e3
+        assert peaks and max(peaks) >= floor, ax.get_title()
+
+
+def _notes(fig) -> str:
+    return " | ".join(t.get_text() for t in fig.texts)
+
+
+def test_force_vs_depth_only_for_bodies_whose_com_goes_into_the_medium():
+    t, bodies = report.run_series(_bodies_recording())
+    fig = report.position_figure(bodies, 0.0)
+    assert [ax.get_title() for ax in _panels(fig)] == ["leg: force vs depth"]
+    assert "not drawn against depth: torso" in _notes(fig)
+    assert "never in the medium (no RFT force), not drawn: arm" in _notes(fig)
+    summary = report.paper_figure(t, bodies, 0.0)
+    titles = [ax.get_title() for ax in _panels(summary)]
+    assert titles == ["leg: force vs depth", "leg: torque vs depth", "leg: force vs time",
+                      "leg: lateral vs vertical force", "torso: force vs time"]  # fmt: skip
+    for figure in (fig, summary, report.time_figure(t, bodies)):
+        _assert_no_empty_panel(figure)
+
+
+def test_a_sphere_dropped_straight_down_gets_no_torque_or_lateral_panel():
+    """Its torque and lateral force are round-off: the summary has force vs depth and vs time
+    only, the time figure no torque row."""
+    n = 300
+    t = np.linspace(0, 1, n)
+    cols = ["time_s", *(f"sphere_com_{a}_m" for a in "xyz"),
+            *(f"sphere_rft_force_{a}_N" for a in "xyz"),
+            *(f"sphere_rft_torque_{a}_Nm" for a in "xyz")]  # fmt: skip
+    rng = np.random.default_rng(5)
+    rows = np.column_stack([t, 0 * t, 0 * t, 0.011 - 0.02 * t, 1e-17 * rng.standard_normal((n, 2)),
+                            0.5 * t, 1e-19 * rng.standard_normal((n, 3))])  # fmt: skip
+    rec = Recording(cols, ["sphere"], rows=list(rows))
+    t, bodies = report.run_series(rec)
+    summary = report.paper_figure(t, bodies, 0.0)
+    assert [ax.get_title() for ax in _panels(summary)] == [
+        "sphere: force vs depth", "sphere: force vs time"]  # fmt: skip
+    time_fig = report.time_figure(t, bodies)
+    assert [ax.get_title() for ax in _panels(time_fig)] == ["sphere: RFT force"]
+    for fig in (summary, time_fig, report.position_figure(bodies, 0.0)):
+        _assert_no_empty_panel(fig)
+
+
+def test_a_run_that_never_touched_the_medium_gets_no_figures(tmp_path):
+    rec = _bodies_recording()
+    keep = [i for i, c in enumerate(rec.columns) if c == "time_s" or c.startswith("arm_")]
+    quiet = Recording([rec.columns[i] for i in keep], ["arm"], rows=[r[keep] for r in rec.rows])
+    assert report.plot_run(quiet, 0.0, tmp_path) == []
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(("fmt", "magic"), [("png", b"\x89PNG"), ("svg", b"<?xml"),
+                                            ("pdf", b"%PDF")])  # fmt: skip
+def test_figures_in_each_format(tmp_path, fmt, magic):
+    paths = report.plot_run(_bodies_recording(), 0.0, tmp_path, fmt=fmt)
+    assert [p.name for p in paths] == [f"{n}.{fmt}" for n in report.RUN_FIGURES]
+    for p in paths:
+        assert p.read_bytes().startswith(magic), p
+    with pytest.raises(ValueError, match="figure format 'jpg'; valid: png, svg, pdf"):
+        report.plot_run(_bodies_recording(), 0.0, tmp_path, fmt="jpg")
+
+
+def test_panel_counts_are_the_figures_panels():
+    for rec in (_bodies_recording(), _recording(12, 500), _recording(2, 300)):
+        t, bodies = report.run_series(rec)
+        counts = report.panel_counts(t, bodies, 0.0)
+        figures = {"forces_vs_time": report.time_figure(t, bodies),
+                   "forces_vs_depth": report.position_figure(bodies, 0.0),
+                   "rft_summary": report.paper_figure(t, bodies, 0.0)}  # fmt: skip
+        for name, fig in figures.items():
+            assert counts[name] == (len(_panels(fig)) if fig is not None else 0), name
+
+
+def test_figures_are_drawn_by_priority_while_their_estimated_cost_fits(tmp_path, monkeypatch):
+    """A clock that advances 0.4 s per panel written, a budget of 2.6 s: the summary (5 panels,
+    estimated at PANEL_S each, times ESTIMATE_MARGIN) is drawn and takes 2 s; forces_vs_time
+    (3 panels, now estimated at 0.4 s each) would end at 2 + 1.25 x 1.2 = 3.5 s and is left
+    out; forces_vs_depth (1 panel: 2 + 1.25 x 0.4 = 2.5 s) fits."""
+    import matplotlib.figure  # noqa: F401  (imported: no import cost in the estimate)
+
+    now = [0.0]
+    save = report.save_figure
+
+    def timed_save(fig, path):
+        now[0] += 0.4 * len(_panels(fig))
+        return save(fig, path)
+
+    monkeypatch.setattr(report, "save_figure", timed_save)
+    rec = _bodies_recording()
+    paths, skipped = report.plot_run_within(rec, 0.0, tmp_path, 2.6, clock=lambda: now[0])
+    assert [p.name for p in paths] == ["forces_vs_depth.png", "rft_summary.png"]
+    assert skipped == ["forces_vs_time"] and now[0] == pytest.approx(2.4)
+    now[0] = 0.0
+    assert report.plot_run_within(rec, 0.0, tmp_path, 0.0, clock=lambda: now[0]) == (
+        [], list(report.FIGURE_PRIORITY))  # fmt: skip

@@ -172,6 +172,7 @@ def test_cli_run_writes_csv_and_plots(tmp_path, capsys):
             "0.0005",
             "--integrator",
             "rk4",
+            "--all-figures",
         ]
     )
     assert code == 0
@@ -183,7 +184,8 @@ def test_cli_run_writes_csv_and_plots(tmp_path, capsys):
     assert len(rows) - 1 == 101  # 100 steps of 0.5 ms, plus the final state
     assert float(rows[-1][0]) == pytest.approx(0.05)
     assert (out / "forces_vs_time.png").stat().st_size > 1000
-    assert (out / "forces_vs_depth.png").stat().st_size > 1000
+    # (0.05 s: the sphere's CoM is still above the surface, so no force-vs-depth figure.)
+    assert (out / "rft_summary.png").stat().st_size > 1000
     assert "completed at t = 0.05 s" in capsys.readouterr().out
 
 

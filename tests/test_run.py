@@ -100,8 +100,8 @@ def test_a_run_in_a_folder_that_holds_one_needs_overwrite(tmp_path, capsys):
     """Another run's results are refused before the first step, not replaced; --overwrite
     replaces all of them (no stale plots beside a --no-plots run)."""
     model = str(MODELS / "sphere_drop.xml")
-    args = ["run", model, "--duration", "0.02", "--out", str(tmp_path), "--triangles", "200"]
-    assert cli.main(args) == 0
+    args = ["run", model, "--duration", "0.1", "--out", str(tmp_path), "--triangles", "200"]
+    assert cli.main([*args, "--all-figures"]) == 0
     plots = {p.name for p in tmp_path.glob("*.png")}
     assert plots == set(cli.RUN_PLOTS)
     files = (cli.RUN_CSV, cli.RUN_JSON, *cli.RUN_PLOTS)

@@ -11,12 +11,12 @@ import difflib
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
 from mjrft.app.recording_defaults import (
     DEFAULT_CONNECT_URL,
-    DEFAULT_FORCE_SCALE,
     DEFAULT_MAX_ARROWS,
     DEFAULT_STRESS_MAX_PA,
 )
@@ -169,20 +169,73 @@ def _recorder(args: argparse.Namespace, model, fld):
     )
 
 
-#: Files `mjrft run` writes into --out (besides the optional --rrd).
-RUN_CSV = "timeseries.csv"
-RUN_PLOTS = ("forces_vs_time.png", "forces_vs_depth.png", "rft_summary.png")
-RUN_JSON = "run.json"
-RUN_FILES = (RUN_CSV, RUN_JSON, *RUN_PLOTS)
+#: Files `mjrft run` writes into --out (besides the optional --rrd): the table (CSV, or
+#: Parquet with --table-format parquet), run.json and the figures (report.RUN_FIGURES) in the
+#: --figure-format (report.FIGURE_FORMATS; here so that building the parser imports no numpy).
+RUN_CSV, RUN_PARQUET, RUN_JSON = "timeseries.csv", "timeseries.parquet", "run.json"
+TABLE_FORMATS = ("csv", "parquet")
+RUN_FIGURES = ("forces_vs_time", "forces_vs_depth", "rft_summary")
+FIGURE_FORMATS = ("png", "svg", "pdf")
+RUN_PLOTS = tuple(f"{name}.png" for name in RUN_FIGURES)
+RUN_FILES = (RUN_CSV, RUN_PARQUET, RUN_JSON,
+             *(f"{name}.{fmt}" for fmt in FIGURE_FORMATS for name in RUN_FIGURES))  # fmt: skip
 #: Exit codes of `mjrft run` besides 0 (completed) and 2 (bad input).
-EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 3, 130, 143
+EXIT_FAILED, EXIT_DIVERGED, EXIT_INTERRUPTED, EXIT_TERMINATED = 1, 3, 130, 143
 #: Exit codes of `mjrft sweep`: runs failed (their rows say why); the sweep stopped for a failure
 #: outside its runs (a full disk; sysexits.h's EX_IOERR).
 EXIT_RUNS_FAILED, EXIT_SWEEP_STOPPED = 3, 74
+#: The signals that stop `mjrft run`: name -> (run.json status, exit code 128 + signal number).
+STOP_SIGNALS = {
+    "SIGINT": ("interrupted", EXIT_INTERRUPTED),
+    "SIGTERM": ("terminated", EXIT_TERMINATED),
+    "SIGHUP": ("terminated", 129),
+}
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an exception so that the run finishes its files as on Ctrl-C."""
+    """A signal that stops `mjrft run` (``STOP_SIGNALS``), raised where the run is so that it
+    finishes its files as on Ctrl-C. Attributes: name ('SIGTERM'), status, code (exit code)."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        self.name = signal.Signals(signum).name
+        self.status, self.code = STOP_SIGNALS[self.name]
+        super().__init__(f"{self.status} by {self.name}")
+
+
+class _StopSignals:
+    """``STOP_SIGNALS``' handlers over `mjrft run`: the first signal raises ``Terminated`` where
+    the run is (start-up or the loop); after it, and once ``disarm`` is called (the results are
+    being written), a signal is only recorded in ``received``, so that whatever arrives the run
+    ends with its files complete. A signal ignored when the run starts (``nohup``) stays
+    ignored."""
+
+    def __init__(self) -> None:
+        self.received: list[str] = []
+        self.armed = True
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> _StopSignals:
+        if threading.current_thread() is not threading.main_thread():
+            return self  # Python delivers signals to the main thread only
+        for name in STOP_SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is not None and signal.getsignal(sig) is not signal.SIG_IGN:
+                self._previous[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+    def _handle(self, signum: int, frame) -> None:
+        self.received.append(signal.Signals(signum).name)
+        if self.armed:
+            self.armed = False
+            raise Terminated(signum)
+
+    def disarm(self) -> None:
+        """From now on signals are only recorded."""
+        self.armed = False
 
 
 def _check_outputs(args: argparse.Namespace) -> Path:
@@ -223,73 +276,104 @@ def _on_sigterm(signum, frame) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from mjrft.app import metadata, simulate
-    from mjrft.field.signals import HeldSignals
+    with _StopSignals() as stop:
+        try:
+            # A signal that escapes _run_prepared came before its first file was written.
+            return _run_prepared(args, _prepare_run(args), stop)
+        except Terminated as exc:
+            print(
+                f"mjrft run: {exc} during start-up, before the first step: nothing was written",
+                file=sys.stderr,
+            )
+            return exc.code
+
+
+def _prepare_run(args: argparse.Namespace) -> _RunInfo:
+    """Everything `mjrft run` checks and builds before it writes a file."""
+    from mjrft.app import simulate
 
     xml = simulate.resolve_model(args.model)
     out = _check_outputs(args)
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, xml)
-    simulate.step_count(args.duration, model.opt.timestep)  # refused before anything is written
+    n_steps = simulate.step_count(args.duration, model.opt.timestep)  # refused before any file
+    run = _RunInfo(xml, out, model, fld, keyframe, ctrl)
+    run.record_every = args.record_every or simulate.figure_record_every(n_steps)
+    return run
+
+
+def _run_prepared(args: argparse.Namespace, run: _RunInfo, stop: _StopSignals) -> int:
+    """Simulate and write the results; whatever ends the run (a signal, a full disk, an error),
+    its files end complete: the CSV's whole rows, the plots of them, run.json's final status."""
+    import mujoco
+
+    from mjrft.app import metadata, simulate
+
+    out, model, fld = run.out, run.model, run.fld
     columns = simulate.new_recording(model, fld).columns
-    run = _RunInfo(xml, model, fld, keyframe)
-    # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
-    for name in RUN_FILES:
-        (out / name).unlink(missing_ok=True)
-    metadata.write(out / RUN_JSON, run.record(args, "running"))
-    # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
-    # crash or SIGKILL loses at most the last second.
-    sink = simulate.CsvSink(out / RUN_CSV, columns)
-    rec = simulate.Recording(columns, [be.name for be in fld.bodies], sink=sink)
-    recorder = _recorder(args, model, fld)
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    rec = simulate.Recording(columns, [be.name for be in fld.bodies])
+    data = mujoco.MjData(model)
+    recorder = None
     status, code = "completed", 0
     try:
+        # A replaced run leaves nothing behind (no plots of it beside a --no-plots run's CSV).
+        for name in RUN_FILES:
+            (out / name).unlink(missing_ok=True)
+        metadata.write(out / RUN_JSON, run.record(args, "running"))
+        # Rows go to the CSV as the run goes (flushed every second): memory stays bounded and a
+        # crash or SIGKILL loses at most the last second.
+        rec.sink = simulate.CsvSink(out / RUN_CSV, columns)
+        recorder = _recorder(args, model, fld)
         t_sim = time.perf_counter()
         try:
             simulate.run(
                 model,
                 args.duration,
                 fld=fld,
-                record_every=args.record_every,
-                progress=_Progress(f"mjrft run {xml.name}"),
+                record_every=run.record_every,
+                progress=_Progress(f"mjrft run {run.xml.name}"),
                 recording=rec,
                 observer=recorder,
                 observe_every=recorder.every if recorder is not None else 1,
-                keyframe=keyframe,
-                ctrl=ctrl,
+                keyframe=run.keyframe,
+                ctrl=run.ctrl,
+                data=data,
             )
         finally:
             run.simulation = time.perf_counter() - t_sim
+        stop.disarm()
     except simulate.RunDiverged as exc:
         status, code = "diverged", EXIT_DIVERGED
         print(f"mjrft run: {exc}", file=sys.stderr)
-    except Terminated:
-        status, code = "terminated", EXIT_TERMINATED
-    except KeyboardInterrupt:
+    except Terminated as exc:
+        status, code = exc.status, exc.code
+    except KeyboardInterrupt:  # raised by other code than our handler (a controller, a test)
         status, code = "interrupted", EXIT_INTERRUPTED
-    except Exception as exc:
-        status, run.error = "failed", f"{type(exc).__name__}: {exc}"
+    except OSError as exc:  # the outputs cannot be written (a full disk, a size limit)
+        status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    except Exception as exc:  # a bug or the user's controller: the traceback follows
+        status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
         raise
     finally:
-        # Whatever was computed is written, even when the run fails or is interrupted; a second
-        # Ctrl-C or a SIGTERM waits until the CSV and the recording are complete.
-        with HeldSignals((signal.SIGINT, signal.SIGTERM)):
-            sink.close()
-            if recorder is not None:
-                recorder.close()  # completes the .rrd file
-        signal.signal(signal.SIGTERM, previous)
-        _write_run_results(args, run, rec, recorder, out, status)
+        # Whatever was computed is written, even when the run fails or is interrupted; any
+        # signal from here on waits until the files are complete.
+        stop.disarm()
+        code = _finish_run(args, run, rec, recorder, data, status, code, stop.received)
     return code
 
 
 class _RunInfo:
     """What `mjrft run` ran and how long its parts took [s], for its summary and run.json."""
 
-    def __init__(self, xml: Path, model, fld, keyframe: int | None) -> None:
-        self.xml, self.model, self.fld, self.keyframe = xml, model, fld, keyframe
+    def __init__(self, xml: Path, out: Path, model, fld, keyframe: int | None, ctrl) -> None:
+        self.xml, self.out, self.model, self.fld = xml, out, model, fld
+        self.keyframe, self.ctrl = keyframe, ctrl
         self.simulation = self.plots = float("nan")
         self.error: str | None = None
+        self.notes: list[str] = []  # what could not be written besides the run's own error
+        self.ground: dict | None = None  # simulate.ground_balance at the end
+        self.record_every = 1  # steps per row of the table
+        self.figures_skipped: list[str] = []  # left out to stay within the simulation's time
 
     def record(self, args: argparse.Namespace, status: str, **extra) -> dict:
         """The run.json record (``mjrft.app.metadata``)."""
@@ -321,6 +405,7 @@ class _RunInfo:
             "versions": metadata.versions(),
             "machine": metadata.machine(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(args.started[1])),
+            "record_every_steps": self.record_every,
             **extra,
         }  # fmt: skip
 
@@ -375,38 +460,156 @@ def _load_controller(spec: str):
     return fn
 
 
-def _write_run_results(args, run: _RunInfo, rec, recorder, out: Path, status: str) -> None:
-    """Plots from the CSV, run.json and the summary of `mjrft run` (also after a failure)."""
-    from mjrft.app import metadata, report, simulate
+def _finish_run(
+    args, run: _RunInfo, rec, recorder, data, status: str, code: int, signals: list[str]
+) -> int:
+    """Complete `mjrft run`'s files whatever ended it: close the CSV (its whole rows) and the
+    recording, draw the plots from the CSV, write run.json's final status and print the summary.
+    An I/O error here (a full disk) turns a completed run into a failed one, named; it never
+    stops the other files. Returns the exit code."""
+    from mjrft.app import metadata, simulate
 
-    fld, model = run.fld, run.model
-    t_end = float(rec.last_row[0]) if rec.n_rows else 0.0
-    pngs: list[Path] = []
-    if rec.n_rows and rec.body_names and not args.no_plots:
-        t0 = time.perf_counter()
-        plots = simulate.Recording.from_csv(rec.sink.path, rec.body_names)
-        title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
-        pngs = report.plot_run(plots, fld.surface, out, title=title)
-        run.plots = time.perf_counter() - t0
+    sink = rec.sink
+    if sink is not None:
+        try:
+            sink.close()
+        except OSError as exc:
+            if run.error is None:
+                status, code, run.error = "failed", EXIT_FAILED, f"{type(exc).__name__}: {exc}"
+    if recorder is not None:
+        try:
+            recorder.close()  # completes the .rrd file
+        except Exception as exc:  # the rest is still written
+            run.notes.append(f"the recording could not be completed: {type(exc).__name__}: {exc}")
+    rows = sink.rows_written if sink is not None else 0
+    last = sink.last_written if sink is not None else None
+    t_end = float(last[0]) if last is not None else 0.0
+    table = _table(args, run, sink)
+    pngs = _run_plots(args, run, rec, table, everything=status != "completed") if rows else []
+    if signals and code == 0:  # completed, then asked to stop: every file is complete
+        code = STOP_SIGNALS[signals[0]][1]
     total = time.perf_counter() - args.started[0]
-    outputs = [str(rec.sink.path), *map(str, pngs)]
+    outputs = [str(table)] if table is not None else []
+    outputs += map(str, pngs)
     if recorder is not None and recorder.path is not None:
         outputs.append(str(recorder.path))
     timing = {"simulation_s": run.simulation, "plots_s": run.plots, "total_s": total}
-    metadata.write(
-        out / RUN_JSON,
-        run.record(args, status, simulated_s=t_end, rows=rec.n_rows, outputs=outputs,
-                   timing={k: v for k, v in timing.items() if v == v},
-                   max_froude=rec.max_froude),
+    run.ground = simulate.ground_balance(run.fld, data)
+    record = run.record(
+        args, status, simulated_s=t_end, rows=rows, outputs=outputs,
+        timing={k: v for k, v in timing.items() if v == v}, max_froude=rec.max_froude,
+        ground=run.ground, figures_skipped=run.figures_skipped, signals=signals, notes=run.notes,
     )  # fmt: skip
-    sim = run.simulation
+    try:
+        metadata.write(run.out / RUN_JSON, record)
+    except OSError as exc:
+        run.notes.append(f"{run.out / RUN_JSON} could not be written: {exc}")
+        code = code or EXIT_FAILED
+    _print_summary(run, status, t_end, rows, len(pngs), total, signals, recorder, table)
+    return code
+
+
+def _table(args, run: _RunInfo, sink) -> Path | None:
+    """The run's table on disk: the CSV, or with --table-format parquet the Parquet file made
+    from it (the CSV, the run's journal, then goes; it stays if the Parquet file cannot be
+    written, named in run.notes)."""
+    from mjrft.app import simulate
+
+    if sink is None or not sink.path.exists():
+        return None
+    if args.table_format != "parquet":
+        return sink.path
+    try:
+        path = simulate.write_parquet(sink.path, run.out / RUN_PARQUET)
+    except Exception as exc:  # a full disk, or the CSV cut by the error that ended the run
+        run.notes.append(f"the Parquet table could not be written ({exc}); the rows are in "
+                         f"{sink.path}")  # fmt: skip
+        return sink.path
+    sink.path.unlink()
+    return path
+
+
+def _run_plots(args, run: _RunInfo, rec, table: Path | None, everything: bool) -> list:
+    """The figures of the rows on disk (none with --no-plots): every figure with --all-figures
+    or `everything` (a run that stopped early: what it computed is shown), else those that fit
+    in the simulation's wall time (``report.plot_run_within``). A figure that cannot be written
+    is named in run.notes, and the run's other files are still written."""
+    from mjrft.app import report, simulate
+
+    if args.no_plots or not rec.body_names or table is None:
+        return []
+    fld = run.fld
+    budget = run.simulation if run.simulation == run.simulation else 0.0
+    if not (args.all_figures or everything) and budget < report.figure_floor_s():
+        run.figures_skipped = list(report.FIGURE_PRIORITY)  # not even one would fit
+        return []
+    t0 = time.perf_counter()
+    try:
+        plots = simulate.Recording.from_file(table, rec.body_names)
+        title = f"{run.xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
+        if args.all_figures or everything:
+            pngs = report.plot_run(plots, fld.surface, run.out, title=title,
+                                   fmt=args.figure_format)  # fmt: skip
+        else:  # within the simulation's own wall time, counted from reading the table
+            budget -= time.perf_counter() - t0
+            pngs, run.figures_skipped = report.plot_run_within(
+                plots, fld.surface, run.out, budget, title=title, fmt=args.figure_format
+            )
+    except OSError as exc:
+        run.notes.append(f"the plots could not be written: {exc}")
+        return []
+    except Exception as exc:  # a plotting bug must not cost the run's record
+        import traceback
+
+        traceback.print_exc()
+        run.notes.append(f"the plots failed: {type(exc).__name__}: {exc}")
+        return []
+    run.plots = time.perf_counter() - t0
+    return pngs
+
+
+def _print_summary(
+    run: _RunInfo, status, t_end, rows, n_plots, total, signals, recorder, table
+) -> None:
+    """`mjrft run`'s summary line on stdout; errors and notes on stderr."""
+    model, fld, sim = run.model, run.fld, run.simulation
     rate = f"{t_end / sim:.2f}x real time" if sim == sim and sim > 0 else "no steps"
+    plots = f"plots {run.plots:.2f} s, " if run.plots == run.plots else ""
     print(
-        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rec.n_rows} rows, "
-        f"{fld.n_elements} triangles, dt = {model.opt.timestep:g} s, {_integrator_name(model)}; "
-        f"simulation {sim:.2f} s wall ({rate}, the simulation alone), {total:.1f} s in all; "
-        f"wrote {rec.sink.path}, {RUN_JSON} and {len(pngs)} plots"
+        f"mjrft run {run.xml.name}: {status} at t = {t_end:.4g} s, {rows} rows (one per "
+        f"{run.record_every} steps), {fld.n_elements} triangles, dt = {model.opt.timestep:g} s, "
+        f"{_integrator_name(model)}; simulation {sim:.2f} s wall ({rate}, the simulation "
+        f"alone), {plots}{total:.1f} s in all; wrote {table or 'no table'}, {RUN_JSON} and "
+        f"{n_plots} figures",
+        flush=True,
     )
+    if run.figures_skipped:
+        print(
+            f"  figures not drawn, to stay within the simulation's {sim:.2f} s: "
+            f"{', '.join(run.figures_skipped)} (--all-figures draws every figure)"
+        )
+    if run.ground is not None:
+        g = run.ground
+        print(
+            f"  deforming ground: {g['excavated_m3']:.4g} m^3 cut, {g['lost_m3']:.4g} m^3 lost "
+            f"at the region's edge ({g['lost_fraction']:.3g} of the cut volume)"
+        )
+        if g["lost_m3"] > 0:
+            print(
+                f"mjrft run: {g['lost_m3']:.4g} m^3 of the deforming ground was cut where it "
+                "could not be placed (at the edge of mjrft:region) and is lost from the ground; "
+                "a region that keeps the intruders away from its edge conserves it",
+                file=sys.stderr,
+            )
+    if status == "failed" and run.error:
+        print(f"mjrft run: failed: {run.error}", file=sys.stderr)
+    if signals:
+        print(
+            f"mjrft run: received {', '.join(signals)}; the run's files were completed first",
+            file=sys.stderr,
+        )
+    for note in run.notes:
+        print(f"mjrft run: {note}", file=sys.stderr)
     if recorder is not None and recorder.path is not None and recorder.path.exists():
         size_mb = recorder.path.stat().st_size / 1e6
         print(
@@ -535,9 +738,12 @@ def _add_run(sub) -> None:
             "the world frame and SI units; then every MJCF sensor) and PNG plots of the RFT "
             "forces vs time and vs depth and a paper-style summary (rft_summary.png), and with "
             "--rrd a rerun recording. The CSV is written as the run goes (flushed every second); "
-            "on Ctrl-C or SIGTERM the run stops and finishes its CSV, recording and plots. Exit "
-            "codes: 0 completed, 2 bad input, 3 the simulation diverged (MuJoCo reset its state; "
-            "the rows before are kept), 130 interrupted, 143 terminated."
+            "on Ctrl-C, SIGTERM or SIGHUP the run stops and finishes its CSV, recording, plots "
+            "and run.json (later signals wait for them); an output that cannot be written (a "
+            "full disk) ends it 'failed', naming the file, with the whole rows written kept. "
+            "Exit codes: 0 completed, 1 failed (run.json's error says why), 2 bad input, 3 the "
+            "simulation diverged (MuJoCo reset its state; the rows before are kept), 129 hang-up, "
+            "130 interrupted, 143 terminated."
         ),
     )
     r.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
@@ -551,17 +757,41 @@ def _add_run(sub) -> None:
         help="output directory (created; one that holds a run needs --overwrite)",
     )
     _add_scene_options(r)
-    r.add_argument(
+    figures = r.add_mutually_exclusive_group()
+    figures.add_argument(
         "--no-plots",
         action="store_true",
-        help="write no PNG plots (the CSV, run.json and any recording are still written)",
+        help="draw no figures (the table, run.json and any recording are still written)",
+    )
+    figures.add_argument(
+        "--all-figures",
+        action="store_true",
+        help="draw every figure whatever it costs (default: the figures of a completed run, "
+        "the summary first, are drawn from the table after the run only while their cost stays "
+        "within the simulation's own wall time, those left out named; a run that stopped early "
+        "draws them all)",
+    )
+    r.add_argument(
+        "--figure-format",
+        choices=FIGURE_FORMATS,
+        default="png",
+        help="the figures' file format: png (raster, at most 2000 px a side), svg or pdf "
+        "(vector) (default: png)",
     )
     r.add_argument(
         "--record-every",
         type=_positive_int,
-        default=1,
+        default=None,
         metavar="K",
-        help="write one CSV row every K steps (default: 1, every step)",
+        help="write one table row every K steps (default: what the figures draw, about 2,000 "
+        "rows over the run: K = steps // 2000, at least 1; 1 for every step)",
+    )
+    r.add_argument(
+        "--table-format",
+        choices=TABLE_FORMATS,
+        default="csv",
+        help="the time series' file: csv (timeseries.csv) or parquet (timeseries.parquet, "
+        "made from the CSV the run streams to, which then goes) (default: csv)",
     )
     r.add_argument(
         "--overwrite",
@@ -708,9 +938,12 @@ def _add_view_model(sub) -> None:
         help="open MODEL in MuJoCo's interactive viewer with the granular field acting",
         description=(
             "Simulate MODEL in real time in MuJoCo's interactive viewer (mujoco.viewer) with the "
-            "granular RFT field, drawing each intruding body's RFT force as an orange "
-            "arrow from its CoM (and with --triangle-arrows the per-triangle forces in blue). "
-            "Needs a display; on a headless machine record with `mjrft run --rrd` instead."
+            "granular RFT field, drawing each intruding body's RFT force as an arrow from its "
+            "CoM (and with --triangle-arrows the per-triangle forces), in the colours farthest "
+            "from the model's own, scaled so that no body arrow is longer than its body's size "
+            "(a body's longest triangle arrow 30% of it) unless --force-scale fixes the scale. "
+            "--track BODY follows a body with the camera. Needs a display; on a headless "
+            "machine record with `mjrft run --rrd` instead."
         ),
     )
     v.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
@@ -723,9 +956,16 @@ def _add_view_model(sub) -> None:
     v.add_argument(
         "--force-scale",
         type=_positive_float,
-        default=DEFAULT_FORCE_SCALE,
+        default=None,
         metavar="M_PER_N",
-        help=f"arrow length per newton [m/N] (default: {DEFAULT_FORCE_SCALE:g})",
+        help="arrow length per newton [m/N] (default: automatic, no body arrow longer than its "
+        "body's size)",
+    )
+    v.add_argument(
+        "--track",
+        default=None,
+        metavar="BODY",
+        help="a camera that follows BODY (a body name, e.g. torso) instead of a free camera",
     )
     v.add_argument(
         "--triangle-arrows",
@@ -737,6 +977,8 @@ def _add_view_model(sub) -> None:
 
 
 def _view(args: argparse.Namespace) -> int:
+    import mujoco
+
     from mjrft.app import mujoco_viewer, simulate
 
     if not mujoco_viewer.has_display():
@@ -746,9 +988,11 @@ def _view(args: argparse.Namespace) -> int:
         )
     ctrl = _load_controller(args.ctrl) if args.ctrl else None
     model, keyframe, fld = _scene(args, args.model)
+    mujoco_viewer.track(mujoco.MjvCamera(), model, args.track)  # a missing body, named at once
     data = simulate.reset_data(model, keyframe)
     mujoco_viewer.launch(model, fld, data=data, ctrl=ctrl, force_scale=args.force_scale,
-                  triangles=args.triangle_arrows, duration=args.duration)  # fmt: skip
+                         triangles=args.triangle_arrows, duration=args.duration,
+                         track_body=args.track)  # fmt: skip
     return 0
 
 

@@ -1,6 +1,5 @@
-"""Defaults of rerun recordings and of MuJoCo's viewer, in a module of their own so that the CLI
-can show them in ``mjrft run --help`` and ``mjrft view --help`` without importing rerun
-(``mjrft.app.viz`` imports it) or mujoco (``mjrft.app.mujoco_viewer`` does)."""
+"""Defaults of rerun recordings, in a module of their own so that the CLI can show them in
+``mjrft run --help`` without importing rerun (``mjrft.app.viz`` imports it)."""
 
 #: Default frame period [s] of simulated time: 100 frames per simulated second (``every`` = 10
 #: steps at dt = 1 ms). A 10 s run of models/ellipsoid_pitch.xml then takes about 15 MB.
@@ -13,6 +12,3 @@ DEFAULT_MAX_ARROWS = 400
 DEFAULT_STRESS_MAX_PA = 1.0e4
 #: gRPC address used by ``connect`` when none is given (rerun's default viewer port).
 DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
-#: Default arrow length per newton [m/N] of the per-body arrows in ``mjrft view``: 5 cm for
-#: 1 N, the weight of the shipped rigs' intruders is of that order.
-DEFAULT_FORCE_SCALE = 0.05

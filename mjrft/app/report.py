@@ -15,6 +15,7 @@ import functools
 import math
 import os
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,6 +196,17 @@ def abscissa(com: np.ndarray, surface_z: float | Surface) -> Abscissa:
     return Abscissa(travel / CM, "horizontal distance", "CoM horizontal distance from start [cm]")
 
 
+def goes_in(com: np.ndarray, surface_z: float | Surface) -> bool:
+    """True if a body's CoM (n, 3) [m], world frame, is below the free surface (`surface_z`
+    [m] or the Surface under it) at some row: its force is worth drawing against its depth. A
+    walking robot's torso, whose belly may touch the medium while its CoM stays above, is not.
+    """
+    com = np.asarray(com, dtype=np.float64)
+    if isinstance(surface_z, Surface):
+        surface_z = surface_z.height(com[:, 0], com[:, 1])
+    return bool(np.any(surface_z - com[:, 2] > 0.0))
+
+
 def figure_title(title: str | None, what: str) -> str:
     """A figure's title: the run's `title` (scene, material, triangles) over what it shows."""
     return f"{title}\n{what}" if title else what
@@ -227,9 +239,30 @@ class BodySeries:
     @property
     def peak_force(self) -> float:
         """Largest |F| over the run [N] (0 if none is finite)."""
-        norms = np.linalg.norm(self.force, axis=1)
-        norms = norms[np.isfinite(norms)]
-        return float(norms.max()) if norms.size else 0.0
+        return _peak(self.force)
+
+    @property
+    def entered(self) -> bool:
+        """True if the body went into the medium: it felt an RFT force of FORCE_FLOOR_N or
+        more (a body that never touches the medium feels none)."""
+        return self.peak_force >= FORCE_FLOOR_N
+
+    @property
+    def has_torque(self) -> bool:
+        """True if the RFT torque about the CoM reached TORQUE_FLOOR_NM (a sphere's does not)."""
+        return _peak(self.torque) >= TORQUE_FLOOR_NM
+
+    @property
+    def has_lateral(self) -> bool:
+        """True if the horizontal RFT force (F_x, F_y) reached FORCE_FLOOR_N."""
+        return _peak(self.force[:, :2]) >= FORCE_FLOOR_N
+
+
+def _peak(v: np.ndarray) -> float:
+    """Largest finite row norm of (n, k) `v` (0 if none)."""
+    norms = np.linalg.norm(v, axis=1)
+    norms = norms[np.isfinite(norms)]
+    return float(norms.max()) if norms.size else 0.0
 
 
 def run_series(rec) -> tuple[np.ndarray, list[BodySeries]]:
@@ -366,9 +399,11 @@ def _head(fig: Figure, title: str, handles: list, ncol: int | None = None) -> No
         )
 
 
-def _note(fig: Figure, text: str) -> None:
-    """A line of text at the bottom left of the figure, below every panel."""
-    fig.text(0.01, 0.06 / fig.get_figheight(), text, fontsize=8, va="bottom", color="0.3")
+def _note(fig: Figure, text: str, line: int = 0) -> None:
+    """A line of text at the bottom left of the figure, below every panel (`line` 0 the
+    lowest, each next one 0.25 in above)."""
+    y = (0.06 + 0.25 * line) / fig.get_figheight()
+    fig.text(0.01, y, text, fontsize=8, va="bottom", color="0.3")
 
 
 def _component_handles(symbols: str) -> list:
@@ -427,10 +462,20 @@ def lateral_panel(fig: Figure, ax: Axes, t: np.ndarray, force: np.ndarray, what:
     ax.set(xlabel="vertical force $F_z$ [N]", ylabel="lateral force [N]", title=what)
 
 
+#: Figure file formats (``mjrft run --figure-format``): PNG (raster, at most MAX_PNG_PX a side),
+#: SVG and PDF (vector: every decimated line point, any zoom).
+FIGURE_FORMATS = ("png", "svg", "pdf")
+
+
 def save_figure(fig: Figure, path: str | os.PathLike) -> Path:
-    """Write `fig` as a PNG at its own dpi, atomically."""
+    """Write `fig` in the format of `path`'s suffix (FIGURE_FORMATS) at its own dpi,
+    atomically."""
+    fmt = Path(path).suffix.lstrip(".").lower()
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r} of {str(path)!r}; valid: {FIGURE_FORMATS}")
+    extra = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if fmt == "png" else {}
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=fig.dpi, pil_kwargs={"compress_level": PNG_COMPRESSION})
+        fig.savefig(tmp, format=fmt, dpi=fig.dpi, **extra)
     return Path(path)
 
 
@@ -448,48 +493,81 @@ def _not_shown(bodies: list[BodySeries], shown: list[int], where: str) -> str | 
 
 #: File name of the paper-style summary figure that `mjrft run` writes next to the CSV.
 PAPER_PNG = "rft_summary.png"
-#: The three figures of ``plot_run``, in the order written.
-RUN_PNGS = ("forces_vs_time.png", "forces_vs_depth.png", PAPER_PNG)
+#: The three figures of ``plot_run`` (names without the format's suffix), in the order written.
+RUN_FIGURES = ("forces_vs_time", "forces_vs_depth", "rft_summary")
+#: Their PNG file names.
+RUN_PNGS = tuple(f"{name}.png" for name in RUN_FIGURES)
 #: Resolution of the summary figure [dots per inch].
 PAPER_DPI = DPI
 
 
-def time_figure(t: np.ndarray, bodies: list[BodySeries], title: str | None = None) -> Figure:
-    """RFT force [N] and torque about the CoM [mN m] vs time [s], world frame.
+def time_figure(t: np.ndarray, bodies: list[BodySeries], title: str | None = None) -> Figure | None:
+    """RFT force [N] and torque about the CoM [mN m] vs time [s], world frame, of the bodies
+    that went into the medium (``BodySeries.entered``); None if none did.
 
     Up to MAX_BODY_COLUMNS bodies: a column per body, its x, y, z components in each panel.
     More: a panel per component (F_x ... M_z), a line per body for the MAX_LINES bodies of the
-    largest peak |F| (the others named below).
+    largest peak |F| (the others named below). The torque row is left out when no body's torque
+    reached TORQUE_FLOOR_NM (a panel is never empty).
     """
-    what = "RFT force and torque about the CoM vs time (world frame)"
-    if len(bodies) <= MAX_BODY_COLUMNS:
-        fig, axes = new_figure(Grid(2, max(1, len(bodies))))
-        for j, b in enumerate(bodies):
-            top, bottom = axes[j], axes[len(bodies) + j]
-            _components(top, t, b.force, "F", FORCE_FLOOR_N)
-            _components(bottom, t, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3)
-            top.set(title=f"{b.name}: RFT force", ylabel="force [N]")
-            bottom.set(title=f"{b.name}: RFT torque", ylabel="torque about CoM [mN m]")
-            bottom.set_xlabel("time [s]")
-            _time_axis(top, t)
-            _time_axis(bottom, t)
-        _head(fig, figure_title(title, what), _component_handles("FM"))
-        return fig
-    return _time_by_component(t, bodies, figure_title(title, what))
+    left_out = [b.name for b in bodies if not b.entered]
+    bodies = [b for b in bodies if b.entered]
+    if not bodies:
+        return None
+    torque = any(b.has_torque for b in bodies)
+    what = "RFT force" + (" and torque about the CoM" if torque else "") + " vs time (world frame)"
+    if len(bodies) > MAX_BODY_COLUMNS:
+        return _time_by_component(t, bodies, figure_title(title, what), torque, left_out)
+    rows = 2 if torque else 1
+    fig, axes = new_figure(Grid(rows, len(bodies), margins=_margins(left_out)))
+    for j, b in enumerate(bodies):
+        top = axes[j]
+        _components(top, t, b.force, "F", FORCE_FLOOR_N)
+        top.set(title=f"{b.name}: RFT force", ylabel="force [N]")
+        _time_axis(top, t)
+        last = top
+        if torque:
+            bottom = axes[len(bodies) + j]
+            if b.has_torque:
+                _components(bottom, t, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3)
+                bottom.set(title=f"{b.name}: RFT torque", ylabel="torque about CoM [mN m]")
+                _time_axis(bottom, t)
+                last = bottom
+            else:  # no empty panel: this body's torque is zero throughout
+                fig.delaxes(bottom)
+        last.set_xlabel("time [s]")
+    _head(fig, figure_title(title, what), _component_handles("FM" if torque else "F"))
+    _never_entered(fig, left_out)
+    return fig
 
 
-def _time_by_component(t: np.ndarray, bodies: list[BodySeries], title: str) -> Figure:
-    """time_figure's panel-per-component layout: F_x, F_y, F_z over M_x, M_y, M_z."""
+def _margins(left_out: list[str], extra: int = 0) -> tuple[float, float, float, float]:
+    """Grid margins with room at the bottom for `extra` notes and the never-entered note."""
+    lines = extra + (1 if left_out else 0)
+    return (0.8, 0.3, 1.25, 0.55 + 0.25 * lines)
+
+
+def _never_entered(fig: Figure, names: list[str], line: int = 0) -> None:
+    """The note naming the bodies left out because they never went into the medium."""
+    if names:
+        shown = ", ".join(names[:6]) + (", ..." if len(names) > 6 else "")
+        _note(fig, f"never in the medium (no RFT force), not drawn: {shown}", line)
+
+
+def _time_by_component(
+    t: np.ndarray, bodies: list[BodySeries], title: str, torque: bool, left_out: list[str]
+) -> Figure:
+    """time_figure's panel-per-component layout: F_x, F_y, F_z over M_x, M_y, M_z (the torque
+    row only if `torque`)."""
     from matplotlib.lines import Line2D
 
     shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies], MAX_LINES)
-    note = _not_shown(bodies, shown, "the CSV")
-    grid = Grid(2, 3, margins=(0.8, 0.3, 1.25, 0.55 + (0.25 if note else 0.0)))
-    fig, axes = new_figure(grid)
+    note = _not_shown(bodies, shown, "the table")
+    rows = 2 if torque else 1
+    fig, axes = new_figure(Grid(rows, 3, margins=_margins(left_out, 1 if note else 0)))
+    quantities = (("F", "N", 1.0, FORCE_FLOOR_N), ("M", "mN m", 1e3, TORQUE_FLOOR_NM * 1e3))
     for i, a in enumerate("xyz"):
-        for row, (symbol, unit, scale, floor) in enumerate(
-            (("F", "N", 1.0, FORCE_FLOOR_N), ("M", "mN m", 1e3, TORQUE_FLOOR_NM * 1e3))
-        ):
+        for row, (symbol, unit, scale, floor) in enumerate(quantities[:rows]):
             ax = axes[3 * row + i]
             series = [
                 (bodies[k].force if row == 0 else bodies[k].torque)[:, i] * scale for k in shown
@@ -499,72 +577,116 @@ def _time_by_component(t: np.ndarray, bodies: list[BodySeries], title: str) -> F
             ax.set_ylim(*value_limits(series, floor))
             ax.set(title=f"${symbol}_{a}$ [{unit}]" + (" about each CoM" if symbol == "M" else ""))
             _time_axis(ax, t)
-            if row == 1:
+            if row == rows - 1:
                 ax.set_xlabel("time [s]")
     handles = [Line2D([], [], color=f"C{k % 10}", label=bodies[k].name) for k in shown]
     _head(fig, title, handles)
     if note:
-        _note(fig, note)
+        _note(fig, note, 1 if left_out else 0)
+    _never_entered(fig, left_out)
     return fig
 
 
 def position_figure(
     bodies: list[BodySeries], surface_z: float | Surface, title: str | None = None
-) -> Figure:
+) -> Figure | None:
     """RFT force [N] vs the body's ``abscissa`` (CoM depth, or horizontal distance at about
-    constant depth), a panel per body for the MAX_POSITION_PANELS bodies of the largest peak
-    |F|, POSITION_COLUMNS to a row; world frame."""
+    constant depth) of the bodies that went into the medium (``BodySeries.entered``; None if
+    none did), a panel per body for the MAX_POSITION_PANELS of the largest peak |F|,
+    POSITION_COLUMNS to a row; world frame."""
+    left_out = [b.name for b in bodies if not b.entered]
+    above = [b.name for b in bodies if b.entered and not goes_in(b.com, surface_z)]
+    bodies = [b for b in bodies if b.entered and b.name not in above]
+    if not bodies:
+        return None
     shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies],
                          MAX_POSITION_PANELS)  # fmt: skip
-    note = _not_shown(bodies, shown, "forces_vs_time.png")
-    cols = max(1, min(len(shown), POSITION_COLUMNS))
-    rows = max(1, -(-len(shown) // cols))
-    bottom = 0.55 + (0.25 if note else 0.0)
-    grid = Grid(rows, cols, panel=(4.3, 2.8), margins=(0.8, 0.3, 1.25, bottom))
-    fig, axes = new_figure(grid, max(1, len(shown)))
-    for ax, k in zip(axes, shown, strict=False):
+    note = _not_shown(bodies, shown, "forces_vs_time")
+    cols = min(len(shown), POSITION_COLUMNS)
+    rows = -(-len(shown) // cols)
+    margins = _margins(left_out, (1 if note else 0) + (1 if above else 0))
+    fig, axes = new_figure(Grid(rows, cols, panel=(4.3, 2.8), margins=margins), len(shown))
+    for ax, k in zip(axes, shown, strict=True):
         b = bodies[k]
         x = abscissa(b.com, surface_z)
         _components(ax, x.values, b.force, "F", FORCE_FLOOR_N, curve=True)
         ax.set(title=f"{b.name}: force vs {x.name}", xlabel=x.label, ylabel="RFT force [N]")
     what = "RFT force vs CoM depth (or horizontal distance at constant depth), world frame"
     _head(fig, figure_title(title, what), _component_handles("F"))
-    if note:
-        _note(fig, note)
+    notes = [n for n in (note, _above_note(above)) if n]
+    for line, text in enumerate(notes, start=1 if left_out else 0):
+        _note(fig, text, line)
+    _never_entered(fig, left_out)
     return fig
+
+
+def _above_note(names: list[str]) -> str | None:
+    """The note naming the bodies not drawn against their depth: their CoM stays above."""
+    if not names:
+        return None
+    shown = ", ".join(names[:6]) + (", ..." if len(names) > 6 else "")
+    return f"CoM never below the surface, not drawn against depth: {shown} (see forces_vs_time)"
+
+
+def _summary_panels(
+    bodies: list[BodySeries], shown: list[int], surface_z: float | Surface
+) -> list[tuple[str, int]]:
+    """The summary's panels, (kind, body index), each with something to show: force vs time
+    always; force vs position if the CoM goes below the surface (``goes_in``), torque vs
+    position too if the torque reached its floor; lateral vs vertical force if the lateral
+    force did."""
+    panels = []
+    for k in shown:
+        b = bodies[k]
+        if goes_in(b.com, surface_z):
+            panels += [("force", k)] + ([("torque", k)] if b.has_torque else [])
+        panels += [("time", k)] + ([("lateral", k)] if b.has_lateral else [])
+    return panels
 
 
 def paper_figure(
     t: np.ndarray, bodies: list[BodySeries], surface_z: float | Surface, title: str | None = None
-) -> Figure:
-    """Paper-style summary, a 2 x 2 block per body (the MAX_SUMMARY_BODIES of the largest peak
-    |F|, stacked), world frame: (a) RFT force [N] vs the body's ``abscissa`` (CoM depth, or
-    horizontal distance at about constant depth) [cm]; (b) RFT torque about the CoM [mN m] vs
-    the same; (c) force vs time [s]; (d) ``lateral_panel``: F_x, F_y vs F_z, dots coloured by
-    time."""
+) -> Figure | None:
+    """Paper-style summary of the MAX_SUMMARY_BODIES bodies of the largest peak |F| that went
+    into the medium (None if none did), world frame, two panels to a row: (a) RFT force [N] vs
+    the body's ``abscissa`` (CoM depth, or horizontal distance at about constant depth) [cm];
+    (b) RFT torque about the CoM [mN m] vs the same; (c) force vs time [s]; (d)
+    ``lateral_panel``: F_x, F_y vs F_z, dots coloured by time. (a) and (b) only for a CoM that
+    goes below the surface, (b) and (d) only where the torque or the lateral force reached its
+    floor (``_summary_panels``: no empty panel, no depth above the surface)."""
+    left_out = [b.name for b in bodies if not b.entered]
+    bodies = [b for b in bodies if b.entered]
+    if not bodies:
+        return None
     shown = shown_bodies([b.name for b in bodies], [b.peak_force for b in bodies],
                          MAX_SUMMARY_BODIES)  # fmt: skip
-    note = _not_shown(bodies, shown, "forces_vs_time.png")
-    bottom = 0.55 + (0.25 if note else 0.0)
-    grid = Grid(2 * max(1, len(shown)), 2, panel=(5.0, 3.0), gap=(0.9, 0.8),
-                margins=(0.8, 0.95, 1.25, bottom))  # fmt: skip
-    fig, axes = new_figure(grid)
-    for j, k in enumerate(shown):
+    note = _not_shown(bodies, shown, "forces_vs_time")
+    panels = _summary_panels(bodies, shown, surface_z)
+    margins = (0.8, 0.95, *_margins(left_out, 1 if note else 0)[2:])
+    grid = Grid(-(-len(panels) // 2), 2, panel=(5.0, 3.0), gap=(0.9, 0.8), margins=margins)
+    fig, axes = new_figure(grid, len(panels))
+    for ax, (kind, k) in zip(axes, panels, strict=True):
         b = bodies[k]
-        ax_f, ax_m, ax_t, ax_lv = axes[4 * j : 4 * j + 4]
         x = abscissa(b.com, surface_z)
-        _components(ax_f, x.values, b.force, "F", FORCE_FLOOR_N, curve=True)
-        _components(ax_m, x.values, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3, curve=True)
-        _components(ax_t, t, b.force, "F", FORCE_FLOOR_N)
-        ax_f.set(title=f"{b.name}: force vs {x.name}", xlabel=x.label, ylabel="RFT force [N]")
-        ax_m.set(title=f"{b.name}: torque vs {x.name}", xlabel=x.label)
-        ax_m.set_ylabel("RFT torque about CoM [mN m]")
-        ax_t.set(title=f"{b.name}: force vs time", xlabel="time [s]", ylabel="RFT force [N]")
-        _time_axis(ax_t, t)
-        lateral_panel(fig, ax_lv, t, b.force, f"{b.name}: lateral vs vertical force")
-    _head(fig, figure_title(title, "RFT summary (world frame)"), _component_handles("FM"))
+        if kind == "force":
+            _components(ax, x.values, b.force, "F", FORCE_FLOOR_N, curve=True)
+            ax.set(title=f"{b.name}: force vs {x.name}", xlabel=x.label, ylabel="RFT force [N]")
+        elif kind == "torque":
+            _components(ax, x.values, b.torque * 1e3, "M", TORQUE_FLOOR_NM * 1e3, curve=True)
+            ax.set(title=f"{b.name}: torque vs {x.name}", xlabel=x.label)
+            ax.set_ylabel("RFT torque about CoM [mN m]")
+        elif kind == "time":
+            _components(ax, t, b.force, "F", FORCE_FLOOR_N)
+            ax.set(title=f"{b.name}: force vs time", xlabel="time [s]", ylabel="RFT force [N]")
+            _time_axis(ax, t)
+        else:
+            lateral_panel(fig, ax, t, b.force, f"{b.name}: lateral vs vertical force")
+    torque = any(kind == "torque" for kind, _ in panels)
+    _head(fig, figure_title(title, "RFT summary (world frame)"),
+          _component_handles("FM" if torque else "F"))  # fmt: skip
     if note:
-        _note(fig, note)
+        _note(fig, note, 1 if left_out else 0)
+    _never_entered(fig, left_out)
     return fig
 
 
@@ -575,19 +697,23 @@ def plot_run(
     out_dir: str | os.PathLike,
     stem: str = "",
     title: str | None = None,
+    fmt: str = "png",
 ) -> list[Path]:
-    """PNG figures of a `mjrft run` recording (``time_figure``, ``position_figure``,
-    ``paper_figure``), each at most MAX_PNG_PX pixels wide and high.
+    """The figures of a `mjrft run` recording (``time_figure``, ``position_figure``,
+    ``paper_figure``) that have something to show: a figure of bodies that never went into the
+    medium is not drawn. A PNG is at most MAX_PNG_PX pixels wide and high.
 
     Args:
-      rec: mjrft.app.simulate.Recording. surface_z: free-surface height [m].
-      out_dir: directory; files are '<stem>forces_vs_time.png', '<stem>forces_vs_depth.png' and
-        '<stem>rft_summary.png' (RUN_PNGS).
+      rec: mjrft.app.simulate.Recording. surface_z: free-surface height [m], or the Surface.
+      out_dir: directory; files are '<stem>forces_vs_time.<fmt>', '<stem>forces_vs_depth.<fmt>'
+        and '<stem>rft_summary.<fmt>' (RUN_FIGURES).
       stem: file name prefix. title: first line of every figure's title (e.g. the scene, its
-        material and triangle count), or None.
+        material and triangle count), or None. fmt: 'png', 'svg' or 'pdf' (FIGURE_FORMATS).
     Returns:
-      The paths written, in RUN_PNGS order.
+      The paths written, in RUN_FIGURES order.
     """
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}; valid: {', '.join(FIGURE_FORMATS)}")
     t, bodies = run_series(rec)
     figures = (
         time_figure(t, bodies, title),
@@ -595,21 +721,125 @@ def plot_run(
         paper_figure(t, bodies, surface_z, title),
     )
     out = Path(out_dir)
-    return [save_figure(f, out / f"{stem}{n}") for f, n in zip(figures, RUN_PNGS, strict=True)]
+    return [
+        save_figure(f, out / f"{stem}{name}.{fmt}")
+        for f, name in zip(figures, RUN_FIGURES, strict=True)
+        if f is not None
+    ]
+
+
+def panel_counts(
+    t: np.ndarray, bodies: list[BodySeries], surface_z: float | Surface
+) -> dict[str, int]:
+    """The number of panels each figure of ``plot_run`` will have (0: not drawn), by
+    RUN_FIGURES name, computed from the data alone (no matplotlib): what a figure costs."""
+    entered = [b for b in bodies if b.entered]
+    torque = any(b.has_torque for b in entered)
+    if len(entered) > MAX_BODY_COLUMNS:
+        n_time = 3 * (2 if torque else 1)
+    else:
+        n_time = len(entered) + sum(b.has_torque for b in entered)
+    inside = [b for b in entered if goes_in(b.com, surface_z)]
+    shown = shown_bodies([b.name for b in entered], [b.peak_force for b in entered],
+                         MAX_SUMMARY_BODIES)  # fmt: skip
+    return {
+        "forces_vs_time": n_time,
+        "forces_vs_depth": min(len(inside), MAX_POSITION_PANELS),
+        "rft_summary": len(_summary_panels(entered, shown, surface_z)) if entered else 0,
+    }
+
+
+#: The order in which ``plot_run_within`` draws the figures: the summary holds the most in one
+#: figure, the time series next.
+FIGURE_PRIORITY = ("rft_summary", "forces_vs_time", "forces_vs_depth")
+#: Estimates of a figure's cost before any was timed, measured on the Xeon VM of RESULTS.md
+#: (benchmarks/plots.py): importing matplotlib [s] and drawing and writing one panel [s].
+MATPLOTLIB_IMPORT_S, PANEL_S = 0.5, 0.12
+#: A figure is drawn only if its estimate times this still fits: the estimates come from the
+#: figures before it and the machine's load changes (one 10 s run overran by 2 % without it).
+ESTIMATE_MARGIN = 1.25
+
+
+def figure_floor_s() -> float:
+    """The least a figure can cost [s] by the estimates: one panel, and importing matplotlib
+    if it is not imported yet (``plot_run_within``)."""
+    import sys
+
+    least = PANEL_S + (0.0 if "matplotlib.figure" in sys.modules else MATPLOTLIB_IMPORT_S)
+    return ESTIMATE_MARGIN * least
+
+
+@_styled
+def plot_run_within(
+    rec,
+    surface_z: float | Surface,
+    out_dir: str | os.PathLike,
+    budget_s: float,
+    title: str | None = None,
+    fmt: str = "png",
+    clock=time.perf_counter,
+) -> tuple[list[Path], list[str]]:
+    """``plot_run``'s figures, drawn in FIGURE_PRIORITY order only while their cost stays
+    within `budget_s` [s] (e.g. the simulation's wall time), counted from this call: a figure
+    is drawn if the time spent so far plus ESTIMATE_MARGIN times its estimated cost fits. The
+    estimate is its panels (``panel_counts``) times the cost per panel measured on the figures
+    drawn so far (PANEL_S before the first), plus MATPLOTLIB_IMPORT_S if matplotlib is not
+    imported yet.
+
+    Returns:
+      (the paths written, in RUN_FIGURES order; the names of the figures left out for the
+      budget, in FIGURE_PRIORITY order).
+    """
+    import sys
+
+    if fmt not in FIGURE_FORMATS:
+        raise ValueError(f"figure format {fmt!r}; valid: {', '.join(FIGURE_FORMATS)}")
+    start = clock()
+    t, bodies = run_series(rec)
+    panels = panel_counts(t, bodies, surface_z)
+    build = {
+        "forces_vs_time": lambda: time_figure(t, bodies, title),
+        "forces_vs_depth": lambda: position_figure(bodies, surface_z, title),
+        "rft_summary": lambda: paper_figure(t, bodies, surface_z, title),
+    }
+    written: dict[str, Path] = {}
+    skipped: list[str] = []
+    drawn_panels, drawing_s = 0, 0.0
+    for name in FIGURE_PRIORITY:
+        if not panels[name]:
+            continue
+        per_panel = drawing_s / drawn_panels if drawn_panels else PANEL_S
+        estimate = panels[name] * per_panel
+        if "matplotlib.figure" not in sys.modules:
+            estimate += MATPLOTLIB_IMPORT_S
+        if clock() - start + ESTIMATE_MARGIN * estimate > budget_s:
+            skipped.append(name)
+            continue
+        import matplotlib.figure  # noqa: F401  (imported here, timed apart from the drawing)
+
+        t0 = clock()
+        fig = build[name]()
+        if fig is not None:
+            written[name] = save_figure(fig, Path(out_dir) / f"{name}.{fmt}")
+        drawing_s += clock() - t0
+        drawn_panels += panels[name]
+    return [written[n] for n in RUN_FIGURES if n in written], skipped
 
 
 @_styled
 def plot_paper(
     rec, surface_z: float | Surface, path: str | os.PathLike, title: str | None = None
-) -> Path:
-    """The paper-style summary (``paper_figure``) of a run as a PNG, written atomically.
+) -> Path | None:
+    """The paper-style summary (``paper_figure``) of a run, written atomically in the format
+    of `path`'s suffix; None (nothing written) if no body went into the medium.
 
     Args:
       rec: mjrft.app.simulate.Recording. surface_z: free-surface height [m].
-      path: PNG file. title: first line of the figure's title (default: none).
+      path: figure file. title: first line of the figure's title (default: none).
     """
     t, bodies = run_series(rec)
-    return save_figure(paper_figure(t, bodies, surface_z, title), path)
+    fig = paper_figure(t, bodies, surface_z, title)
+    return None if fig is None else save_figure(fig, path)
 
 
 # ----------------------------------------------------------------------------------------------

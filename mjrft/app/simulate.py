@@ -5,9 +5,11 @@ Used by ``mjrft run`` and ``mjrft demo``; no plotting or CLI code here.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import math
 import os
+import signal
 import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,6 +22,7 @@ from mjrft.app.regime import FroudeWatch, com_velocity
 from mjrft.field import plugin
 from mjrft.field.granular_field import GranularField
 from mjrft.field.options import SceneOptions
+from mjrft.field.signals import HeldSignals
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -109,23 +112,46 @@ _DIVERGING = {
 }
 
 
+#: Signals held while a block of rows is written, so that no signal cuts a row in two.
+_WRITE_HELD = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+class OutputError(OSError):
+    """Writing a run's output failed (a full disk, a file-size limit, a vanished folder): the
+    message names the file, the system's reason and what the file keeps."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
 class CsvSink:
     """A CSV file written as a run goes: the header at once, rows buffered and flushed at least
     every ``flush_s`` seconds of wall time and at close, in memory that does not grow with the
     run. Values are written exactly (shortest round-trip repr). Rows on disk survive a crash
-    or SIGKILL, up to the last flush."""
+    or SIGKILL, up to the last flush; a block of rows is written with signals held, and a write
+    that fails (``OutputError``: a full disk, a file-size limit) is cut back to the last whole
+    row, so the file never ends in part of a row."""
 
     def __init__(self, path: str | Path, columns: list[str], flush_s: float = 1.0) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, "w", newline="")
-        self._fh.write(",".join(columns) + "\n")
-        self._fh.flush()
+        self._fd: int | None = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._size = 0  # bytes of whole rows on disk
         self.flush_s = flush_s
         self._pending: list[np.ndarray] = []
         self._last_flush = _time.monotonic()
-        self.n_rows = 0
+        self.n_rows = 0  # rows appended
+        self.rows_written = 0  # rows on disk
+        self.last_written: np.ndarray | None = None  # the last row on disk
         self.last_row: np.ndarray | None = None
+        self.error: OutputError | None = None
+        _, failure = self._write((",".join(columns) + "\n").encode())
+        if failure is not None:
+            os.close(self._fd)
+            self._fd = None
+            raise OutputError(failure.errno, f"cannot write {self.path}: {failure.strerror}")
 
     def append(self, row: np.ndarray) -> None:
         """Add one row (it is written within ``flush_s`` seconds)."""
@@ -136,20 +162,65 @@ class CsvSink:
             self.flush()
 
     def flush(self) -> None:
-        """Write the buffered rows and hand them to the operating system."""
+        """Write the buffered rows and hand them to the operating system.
+
+        Raises:
+          OutputError if they cannot be written (the file keeps the rows written before)."""
+        if self.error is not None:
+            raise self.error
         if self._pending:
             block = np.vstack(self._pending).tolist()
-            self._pending = []
-            self._fh.write("".join(",".join(map(repr, r)) + "\n" for r in block))
-        self._fh.flush()
+            text = "".join(",".join(map(repr, r)) + "\n" for r in block).encode()
+            # Held: a signal's exception must not fall between the write and its bookkeeping
+            # (the rows would be written twice) nor cut a row in two.
+            with HeldSignals(_WRITE_HELD):
+                kept, failure = self._write(text)
+                n = text.count(b"\n", 0, kept)
+                self.rows_written += n
+                if n:
+                    self.last_written = self._pending[n - 1]
+                del self._pending[:n]
+                if failure is not None:
+                    self.error = OutputError(
+                        failure.errno,
+                        f"cannot write {self.path}: {failure.strerror} (it keeps the header and "
+                        f"the {self.rows_written} rows written before, each whole)",
+                    )
+                    raise self.error from None
         self._last_flush = _time.monotonic()
 
+    def _write(self, data: bytes) -> tuple[int, OSError | None]:
+        """Write `data` at the end of the file: (bytes kept, None), or on failure the whole
+        rows that landed are kept, the rest cut back: (their bytes, the error)."""
+        view, done = memoryview(data), 0
+        try:
+            while done < len(data):
+                done += os.write(self._fd, view[done:])
+        except OSError as exc:
+            kept = data.rfind(b"\n", 0, done) + 1
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._fd, self._size + kept)
+                os.lseek(self._fd, self._size + kept, os.SEEK_SET)
+            self._size += kept
+            return kept, exc
+        self._size += done
+        return done, None
+
     def close(self) -> None:
-        """Flush and close (idempotent)."""
-        if not self._fh.closed:
+        """Flush and close (idempotent). Closes the file even if the flush fails (and raises
+        that OutputError)."""
+        if self._fd is None:
+            return
+        try:
             self.flush()
-            os.fsync(self._fh.fileno())
-            self._fh.close()
+            os.fsync(self._fd)
+        except OSError as exc:
+            if self.error is None:
+                self.error = OutputError(exc.errno, f"cannot write {self.path}: {exc.strerror}")
+            raise self.error from None
+        finally:
+            os.close(self._fd)
+            self._fd = None
 
 
 @dataclass
@@ -192,19 +263,22 @@ class Recording:
 
     @classmethod
     def from_csv(cls, path: str | Path, body_names: list[str], max_rows: int = 20_000) -> Recording:
-        """A recording read back from a CSV written by CsvSink, every k-th row (and the last)
-        so that at most ``max_rows`` are held: enough for plots, bounded for any run length."""
-        with open(path) as fh:
-            columns = fh.readline().strip().split(",")
-            n = sum(1 for _ in fh)
+        """A recording read back from a CSV written by CsvSink (``from_file``)."""
+        return cls.from_file(path, body_names, max_rows)
+
+    @classmethod
+    def from_file(
+        cls, path: str | Path, body_names: list[str], max_rows: int = 20_000
+    ) -> Recording:
+        """A recording read back from a run's table (a CSV written by CsvSink, or the Parquet
+        file of ``write_parquet``), every k-th row (and the last) so that at most ``max_rows``
+        are held: enough for plots, bounded for any run length. Read with pyarrow (a rerun
+        dependency), values exactly as written (nan and inf included)."""
+        columns, table = read_table(path)
+        n = len(table)
         k = max(1, -(-n // max_rows))
-        rows = []
-        with open(path) as fh:
-            fh.readline()
-            for i, line in enumerate(fh):
-                if i % k == 0 or i == n - 1:
-                    rows.append(np.array(line.split(","), dtype=np.float64))
-        return cls(columns, body_names, rows)
+        keep = np.unique(np.append(np.arange(0, n, k), n - 1)) if n else np.arange(0)
+        return cls(columns, body_names, list(table[keep]))
 
     def array(self) -> np.ndarray:
         """(n_rows, n_columns) array of everything recorded so far."""
@@ -215,6 +289,75 @@ class Recording:
     def column(self, name: str) -> np.ndarray:
         """One recorded column by name."""
         return self.array()[:, self.columns.index(name)]
+
+
+def ground_balance(fld: GranularField, data: mujoco.MjData) -> dict[str, float] | None:
+    """The deforming ground's volume account of `data` since it was reset, or None if the
+    ground does not deform: ``excavated_m3`` (volume cut by the intruders), ``lost_m3`` (cut
+    volume that found no place on the grid to go, the engine's ``unplaced`` counter: cut at the
+    edge of ``mjrft:region``, whose outer ring of vertices never changes, or under a footprint
+    that covers the whole region; it is gone from the ground), ``lost_fraction`` (lost_m3 /
+    excavated_m3, 0 when nothing was cut) and ``edge_vertices`` (footprint vertices on that
+    outer ring, summed over the updates: where an intruder met ground that cannot deform)."""
+    if not fld.deforms:
+        return None
+    counters = fld.soil(data).counters
+    cut, lost = counters["excavated"], counters["unplaced"]
+    return {
+        "excavated_m3": cut,
+        "lost_m3": lost,
+        "lost_fraction": lost / cut if cut > 0 else 0.0,
+        "edge_vertices": int(counters["edge"]),
+    }
+
+
+#: Table formats of ``mjrft run`` (``--table-format``).
+TABLE_FORMATS = ("csv", "parquet")
+
+
+def read_table(path: str | Path) -> tuple[list[str], np.ndarray]:
+    """(column names, (n_rows, n_columns) float64 array) of a run's table: a CSV written by
+    CsvSink or a Parquet file (by its suffix)."""
+    import pyarrow.csv
+    import pyarrow.parquet
+
+    path = Path(path)
+    if path.suffix == ".parquet":
+        table = pyarrow.parquet.read_table(path)
+    else:
+        # No null values: CsvSink writes nan as 'nan', which must stay NaN.
+        convert = pyarrow.csv.ConvertOptions(null_values=[], strings_can_be_null=False)
+        table = pyarrow.csv.read_csv(path, convert_options=convert)
+    columns = list(table.column_names)
+    if table.num_rows == 0:
+        return columns, np.zeros((0, len(columns)))
+    return columns, np.column_stack([table.column(c).to_numpy() for c in columns]).astype(float)
+
+
+def write_parquet(csv: str | Path, path: str | Path) -> Path:
+    """Write the run's CSV table `csv` as a Parquet file `path` (float64 columns, zstd),
+    atomically; the CSV is left in place."""
+    import pyarrow
+    import pyarrow.parquet
+
+    from mjrft.app.report import atomic_path
+
+    columns, values = read_table(csv)
+    table = pyarrow.table({c: values[:, i] for i, c in enumerate(columns)})
+    with atomic_path(path) as tmp:
+        pyarrow.parquet.write_table(table, tmp, compression="zstd")
+    return Path(path)
+
+
+#: Rows a run's figures draw: each line is a min/max envelope over ``report.LINE_BINS`` = 1000
+#: runs of rows, two points per run.
+FIGURE_ROWS = 2000
+
+
+def figure_record_every(n_steps: int) -> int:
+    """The recording period [steps] that gives a run of `n_steps` steps about FIGURE_ROWS rows
+    (at least every step): what its figures draw, and no more."""
+    return max(1, n_steps // FIGURE_ROWS)
 
 
 def _sensor_columns(model: mujoco.MjModel) -> list[str]:
@@ -285,6 +428,7 @@ def run(
     observe_every: int = 1,
     keyframe: int | None = 0,
     ctrl: Controller | None = None,
+    data: mujoco.MjData | None = None,
 ) -> tuple[mujoco.MjData, Recording]:
     """Simulate `duration` seconds from a keyframe; the engine plugin the model carries adds the
     field's forces inside every step.
@@ -309,6 +453,8 @@ def run(
         the model has one, else from qpos0; None always starts from qpos0.
       ctrl: a controller ``ctrl(t, data)`` called before every step with the MuJoCo time t [s]:
         it returns the (nu,) actuator controls, or None after writing ``data.ctrl`` itself.
+      data: the MjData to step (its state is first reset to the keyframe); a new one if None.
+        Pass one to read its state (e.g. the field's counters) even when the run raises.
     Returns:
       (final MjData, Recording).
     Raises:
@@ -323,7 +469,7 @@ def run(
         raise ValueError(f"observe_every must be >= 1, got {observe_every}")
     fld = fld or GranularField(model)
     rec = recording or new_recording(model, fld)
-    data = reset_data(model, keyframe)
+    data = reset_data(model, keyframe, data)
     apply_ctrl = checked_controller(model, ctrl)
     tick = max(1, n_steps // 100)
     # mj_step with Euler or the implicit integrators leaves kinematics, sensors and the field's
@@ -385,10 +531,15 @@ def step_count(duration: float, timestep: float) -> int:
     return round(duration / timestep)
 
 
-def reset_data(model: mujoco.MjModel, keyframe: int | None = 0) -> mujoco.MjData:
-    """A new MjData at keyframe `keyframe` (0: keyframe 0 if the model has keyframes, else
-    qpos0; None: qpos0)."""
-    data = mujoco.MjData(model)
+def reset_data(
+    model: mujoco.MjModel, keyframe: int | None = 0, data: mujoco.MjData | None = None
+) -> mujoco.MjData:
+    """A new MjData (or `data`, reset) at keyframe `keyframe` (0: keyframe 0 if the model has
+    keyframes, else qpos0; None: qpos0)."""
+    if data is None:
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
     if keyframe is None or (keyframe == 0 and model.nkey == 0):
         return data
     if not 0 <= keyframe < model.nkey:
