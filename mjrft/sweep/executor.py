@@ -78,6 +78,8 @@ def execute(
             status, error = STATUS_FAILED, one_line(f"{type(exc).__name__}: {exc}")
             if isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS:
                 status = STATUS_RETRY
+                if f"[Errno {exc.errno}]" not in error:  # what stops_the_sweep reads
+                    error = f"{error} [Errno {exc.errno}]"
             metrics = {m.name: math.nan for m in study.metrics}
     largest = max(froude.values(), default=math.nan)
     return {
