@@ -81,7 +81,7 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
     mjd = mujoco.MjData(mjm)
     if mjm.nkey:
         mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
-    field = WarpField(mjm, device=str(device))
+    field = WarpField(mjm, low_speed="off", device=str(device))
     qpos, qvel = initial_state(name, mjm, mjd, nworld)
     with wp.ScopedDevice(device):
         m = mjw.put_model(mjm)

@@ -29,10 +29,15 @@ from mjrft.field import plugin
 from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
 from mjrft.field.scene import Scene, SceneError, scene_from_model
+from mjrft.warp import lowspeed as ls
 from mjrft.warp import surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
+from mjrft.warp.lowspeed import Elements, Medium, widen
 from mjrft.warp.quadrature import quadrature_point
 from mjrft.warp.surface import Surface
+
+#: The mechanism treatment (engine/mechanism.cc) is on the Warp field.
+MECHANISMS = False
 
 
 class UnsupportedScene(SceneError):
@@ -40,22 +45,6 @@ class UnsupportedScene(SceneError):
 
 
 # --------------------------------------------------------------------------------- kernels
-@wp.struct
-class Medium:
-    """The medium and its extent: combined coefficients co (18,), alpha_y, zeta [N/m^3], the
-    dynamic term's lambda rho_c [kg/m^3] (0: off), the free surface and the region box [m]
-    (used if use_region); world frame."""
-
-    co: wp.array(dtype=f64)
-    ay: f64
-    zeta: f64
-    lam_rho: f64
-    surface: Surface
-    use_region: int
-    region_lo: vec3d
-    region_hi: vec3d
-
-
 @wp.kernel
 def cull_kernel(
     # Model
@@ -80,11 +69,6 @@ def cull_kernel(
                 if c[i] + r < medium.region_lo[i] or c[i] - r > medium.region_hi[i]:
                     out = 1
     cull[w, g] = out
-
-
-@wp.func
-def widen(v: wp.vec3) -> vec3d:
-    return vec3d(f64(v[0]), f64(v[1]), f64(v[2]))
 
 
 @wp.kernel
@@ -137,40 +121,123 @@ def element_kernel(
 
 
 @wp.kernel
-def apply_kernel(
+def user_kernel(
+    # Model
+    tbody_bodyid: wp.array(dtype=int),
+    # Data in
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+    # Data in and out
+    user: wp.array2d(dtype=wp.spatial_vector),
+):  # fmt: skip
+    """The user part of tagged body k's xfrc_applied row: a component that no longer holds what
+    the field wrote there was assigned by the user and becomes the user part (the engine's
+    rule, docs/field.md)."""
+    w, k = wp.tid()
+    cur = xfrc_applied[w, tbody_bodyid[k]]
+    old = written[w, k]
+    u = user[w, k]
+    for c in range(6):
+        if cur[c] != old[c]:
+            u[c] = cur[c]
+    user[w, k] = u
+
+
+@wp.kernel
+def write_kernel(
     # Model
     tbody_bodyid: wp.array(dtype=int),
     # Data in
     force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
-    # Data in and out
-    user: wp.array2d(dtype=wp.spatial_vector), written: wp.array2d(dtype=wp.spatial_vector),
-    xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+    user: wp.array2d(dtype=wp.spatial_vector),
+    # Data out
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
 ):  # fmt: skip
-    """xfrc_applied row of tagged body k = user part + RFT wrench; a component that no longer
-    holds what was written there was assigned by the user and becomes the user part (the
-    engine's rule, docs/field.md)."""
+    """xfrc_applied row of tagged body k = user part + RFT wrench, remembered as written."""
     w, k = wp.tid()
-    b = tbody_bodyid[k]
-    cur = xfrc_applied[w, b]
-    old = written[w, k]
     u = user[w, k]
     f = force[w, k]
     t = torque[w, k]
     out = wp.spatial_vector()
-    for c in range(6):
-        uc = u[c]
-        if cur[c] != old[c]:
-            uc = cur[c]
-        u[c] = uc
-        rft = f64(0.0)
-        if c < 3:
-            rft = f[c]
-        else:
-            rft = t[c - 3]
-        out[c] = uc + float(rft)
-    user[w, k] = u
+    for c in range(3):
+        out[c] = u[c] + float(f[c])
+        out[3 + c] = u[3 + c] + float(t[c])
     written[w, k] = out
-    xfrc_applied[w, b] = out
+    xfrc_applied[w, tbody_bodyid[k]] = out
+
+
+@wp.kernel
+def treat_kernel(
+    # Model
+    el: Elements, medium: Medium, tbody_bodyid: wp.array(dtype=int),
+    tbody_rootid: wp.array(dtype=int), tbody_treat: wp.array(dtype=int), reach: f64, h_rel: f64,
+    semi: int, gravity_on: int, timestep: wp.array(dtype=float), gravity: wp.array(dtype=wp.vec3),
+    body_mass: wp.array2d(dtype=float), body_inertia: wp.array2d(dtype=wp.vec3),
+    body_gravcomp: wp.array2d(dtype=float),
+    # Data in
+    xpos: wp.array2d(dtype=wp.vec3), xmat: wp.array2d(dtype=wp.mat33),
+    xipos: wp.array2d(dtype=wp.vec3), ximat: wp.array2d(dtype=wp.mat33),
+    cvel: wp.array2d(dtype=wp.spatial_vector), subtree_com: wp.array2d(dtype=wp.vec3),
+    cull: wp.array2d(dtype=int), user: wp.array2d(dtype=wp.spatial_vector),
+    # Data in and out
+    force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
+    # Data out
+    decision: wp.array2d(dtype=int),
+):  # fmt: skip
+    """The low-speed treatment of tagged free body k in world w (engine lowspeed::TreatAll):
+    force, torque hold its pure wrench and get the treated one; decision[w, k] its decision."""
+    w, k = wp.tid()
+    decision[w, k] = ls.PURE
+    if tbody_treat[k] == 0:
+        return
+    dt = f64(timestep[w % timestep.shape[0]])
+    if not (dt > f64(0.0)):
+        return
+    in_play = int(0)
+    g0 = el.tbody_geomadr[k]
+    for g in range(g0, g0 + el.tbody_geomnum[k]):
+        if cull[w, g] == 0:
+            in_play = 1
+    if in_play == 0:
+        return
+    b = tbody_bodyid[k]
+    wm = w % body_mass.shape[0]
+    mass = f64(body_mass[wm, b])
+    inertia = ls.widen(body_inertia[w % body_inertia.shape[0], b])
+    if not (mass > f64(0.0) and inertia[0] > f64(0.0) and inertia[1] > f64(0.0)
+            and inertia[2] > f64(0.0)):  # fmt: skip
+        return
+    gvec = vec3d(f64(0.0), f64(0.0), f64(0.0))
+    if gravity_on != 0:
+        comp = f64(body_gravcomp[w % body_gravcomp.shape[0], b])
+        gvec = ls.widen(gravity[w % gravity.shape[0]]) * (f64(1.0) - comp)
+    x = ls.widen_mat(ximat[w, b])
+    body = ls.Body()
+    body.iw = x * wp.diag(inertia) * wp.transpose(x)
+    body.ii = x * wp.diag(vec3d(f64(1.0) / inertia[0], f64(1.0) / inertia[1],
+                                f64(1.0) / inertia[2])) * wp.transpose(x)  # fmt: skip
+    body.mass = mass
+    tw = cvel[w, b]
+    om = vec3d(f64(tw[0]), f64(tw[1]), f64(tw[2]))
+    com = ls.widen(xipos[w, b])
+    r = com - ls.widen(subtree_com[w, tbody_rootid[k]])
+    v = vec3d(f64(tw[3]), f64(tw[4]), f64(tw[5])) + wp.cross(om, r)
+    u32 = user[w, k]
+    u = ls.vec6d()
+    for c in range(6):
+        u[c] = f64(u32[c])
+    body.twist = ls.six(v, om)
+    body.other = ls.six(mass * gvec + ls.lin(u), ls.ang(u) - wp.cross(om, body.iw * om))
+    at = ls.Pose()
+    at.w = w
+    at.k = k
+    at.rot = ls.widen_mat(xmat[w, b])
+    at.origin = ls.widen(xpos[w, b])
+    at.com = com
+    pure = ls.six(force[w, k], torque[w, k])
+    dec, f = ls.treat_body(el, medium, cull, at, body, gvec, u, dt, semi, pure, reach, h_rel)
+    force[w, k] = ls.lin(f)
+    torque[w, k] = ls.ang(f)
+    decision[w, k] = dec
 
 
 # ------------------------------------------------------------------------------ the field
@@ -200,6 +267,31 @@ def _supported(scene: Scene) -> None:
             "mjrft.warp: the deforming ground (mjrft:deform_cell) is not supported yet; the Warp "
             "field has fixed surfaces: flat, tilted (mjrft:surface_slope) or a height field "
             "(mjrft:surface_hfield)"
+        )
+
+
+def _supported_treatment(setup: FieldSetup) -> None:
+    """Raise UnsupportedScene if the scene asks for the mechanism treatment on a body in a
+    mechanism (low_speed="stick"), which the Warp field does not have yet."""
+    mech = np.asarray(setup.tables["tbody_mech"], dtype=bool)
+    if setup.scene.low_speed.mechanisms and mech.any() and not MECHANISMS:
+        names = ", ".join(repr(b.name) for b, on in zip(setup.bodies, mech, strict=True) if on)
+        raise UnsupportedScene(
+            "mjrft.warp: the low-speed treatment of bodies in mechanisms (low_speed='stick' on "
+            f"bodies moved by joints: {names}) is not supported yet; use low_speed='free' (free "
+            "bodies treated, the others the pure model) or 'off'"
+        )
+
+
+def _check_integrator(m) -> None:
+    """Raise ValueError if the mjw.Model m integrates with RK4, whose stages the treatment
+    cannot recognise on MuJoCo Warp (its stages run at the step's start time)."""
+    if int(m.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+        raise ValueError(
+            "mjrft.warp: the low-speed treatment is not supported under the RK4 integrator on "
+            "MuJoCo Warp (its stage passes carry no stage time, so the engine's stage rule "
+            "cannot hold a stuck body's wrench over the step); use Euler, implicit or "
+            "implicitfast, or WarpField(..., low_speed='off')"
         )
 
 
@@ -243,6 +335,7 @@ class _Worlds:
     user: wp.array  # (nworld, ntbody) spatial_vector: the user part of xfrc_applied's rows
     written: wp.array  # (nworld, ntbody) spatial_vector: what the field last wrote there
     elem_force: wp.array  # (nworld, nelem) vec3d [N], or (1, 1) if not stored
+    decision: wp.array  # (nworld, ntbody) int: the low-speed treatment's (lowspeed.PURE...)
     owner: weakref.ref  # the mjw.Data these belong to
 
 
@@ -253,8 +346,9 @@ class WarpField:
       model: the compiled MjModel whose ``<custom>`` describes the scene (``mjrft:`` section),
         without the engine plugin: the model ``mjw.put_model`` takes (MuJoCo Warp runs no C
         plugins), e.g. ``mujoco.MjModel.from_xml_path``, not ``mjrft.load_model``.
-      material, n_triangles, tolerance, dynamic: SceneOptions on top of the MJCF's, as
-        ``mjrft.load_model`` takes them.
+      material, n_triangles, tolerance, dynamic, low_speed, stick_reach: SceneOptions on top of
+        the MJCF's, as ``mjrft.load_model`` takes them (low_speed: the MJCF's ``mjrft:low_speed``,
+        default "stick", as the engine's).
       device: the Warp device (default: Warp's default device).
       store_element_forces: keep each element's force per world (``element_forces_of``);
         costs nworld x elements x 24 bytes of device memory.
@@ -270,10 +364,9 @@ class WarpField:
     naming the two.
 
     The element tables are the engine's (``mjrft.field.plugin.setup``: the same meshing,
-    culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine).
-    The Warp field has no low-speed treatment (the engine's "stick" and mechanism treatments):
-    it is the pure model, as the engine under ``low_speed="off"``, and it evaluates elements
-    with the engine's quadrature (mjrft.warp.quadrature).
+    culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine),
+    and so is the low-speed treatment of free bodies (``low_speed`` "stick" or "free";
+    mjrft.warp.lowspeed), under Euler, implicit and implicitfast; "off" is the pure model.
     """
 
     def __init__(
@@ -284,18 +377,21 @@ class WarpField:
         n_triangles: int | None = None,
         tolerance: float | None = None,
         dynamic: float | tuple[float, float] | None = None,
+        low_speed: str | None = None,
+        stick_reach: float | None = None,
         device: str | None = None,
         store_element_forces: bool = False,
     ) -> None:
         _check_plain(model)
         options = SceneOptions(
-            material=material, n_triangles=n_triangles, tolerance=tolerance, low_speed="off",
-            dynamic=dynamic,
+            material=material, n_triangles=n_triangles, tolerance=tolerance, low_speed=low_speed,
+            stick_reach=stick_reach, dynamic=dynamic,
         )  # fmt: skip
         # Named before plugin.setup, which refuses some of these (callable media) in the
         # engine's terms.
         _supported(scene_from_model(model, **options.given()))
         setup = plugin.setup(model, options)
+        _supported_treatment(setup)
         self.model = model
         #: The scene, its elements (body frame) and the engine's tables: the CPU engine's
         #: under the same options, one source for both.
@@ -335,6 +431,17 @@ class WarpField:
         self._medium.use_region = int(fm["use_region"])
         self._medium.region_lo = vec3d(*region[0])
         self._medium.region_hi = vec3d(*region[1])
+        self._elements = Elements()
+        for name in ("pos", "normal", "area", "reach", "patch"):
+            setattr(self._elements, name, getattr(self, f"_elem_{name}"))
+        for name in ("tgeom_elemadr", "tgeom_elemnum", "tbody_geomadr", "tbody_geomnum"):
+            setattr(self._elements, name, arr(np.asarray(fm[name], dtype=np.int32), int))
+        #: The low-speed treatment: "stick", "free" or "off" (the scene's, SceneOptions).
+        self.low_speed = setup.scene.low_speed.mode
+        self._treat = arr(np.asarray(fm["tbody_treat"], dtype=np.int32), int)
+        self._treats = bool(fm["treat"]) and bool(np.any(fm["tbody_treat"]))
+        self._reach = f64(fm["reach"])
+        self._jacobian_step = f64(fm["jacobian_step"])
         self._worlds: dict[int, _Worlds] = {}
 
     @property
@@ -345,7 +452,7 @@ class WarpField:
     # ------------------------------------------------------------------ per-Data state
     def bytes_per_world(self) -> int:
         """Device memory [bytes] the field's arrays take per world."""
-        per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24)
+        per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24 + 4)
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
     def _worlds_of(self, d) -> _Worlds:
@@ -367,6 +474,7 @@ class WarpField:
             user=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
             written=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
             elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
+            decision=wp.zeros((nworld, self.ntbody), dtype=int, device=dev),
             owner=weakref.ref(d),
         )
         # Forget the arrays of Data that no longer exist (their ids may be reused).
@@ -433,25 +541,67 @@ class WarpField:
             outputs=[st.force, st.torque, st.elem_force], device=dev,
         )  # fmt: skip
 
-    def apply(self, d) -> None:
-        """Write user part + the last ``compute``'s wrench into d.xfrc_applied's tagged rows."""
+    def take_user_part(self, d) -> None:
+        """Read the user part of d.xfrc_applied's tagged rows (what the user assigned since the
+        field last wrote them, per component)."""
         st = self._worlds_of(d)
         wp.launch(
-            apply_kernel, dim=(st.nworld, self.ntbody),
-            inputs=[self._tbody_bodyid, st.force, st.torque],
-            outputs=[st.user, st.written, d.xfrc_applied], device=self.device,
+            user_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._tbody_bodyid, st.written, d.xfrc_applied], outputs=[st.user],
+            device=self.device,
         )  # fmt: skip
 
+    def treat(self, m, d) -> None:
+        """The low-speed treatment of the free bodies (engine/lowspeed.cc) on the last
+        ``compute``'s wrenches, with the user part of xfrc_applied read by the last
+        ``take_user_part`` as the user's wrench; nothing under low_speed="off". Needs m, the
+        mjw.Model (mass, inertia, gravity, timestep per world). One launch."""
+        st = self._worlds_of(d)
+        if not self._treats:
+            return
+        _check_integrator(m)
+        opt = m.opt
+        gravity_on = int(not (int(opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)))
+        semi = int(int(opt.integrator) != int(mujoco.mjtIntegrator.mjINT_RK4))
+        wp.launch(
+            treat_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._elements, self._medium, self._tbody_bodyid, self._tbody_rootid,
+                    self._treat, self._reach, self._jacobian_step, semi, gravity_on,
+                    opt.timestep, opt.gravity, m.body_mass, m.body_inertia, m.body_gravcomp,
+                    d.xpos, d.xmat, d.xipos, d.ximat, d.cvel, d.subtree_com, st.cull, st.user],
+            outputs=[st.force, st.torque, st.decision], device=self.device,
+        )  # fmt: skip
+
+    def write(self, d) -> None:
+        """Write user part + the wrenches into d.xfrc_applied's tagged rows."""
+        st = self._worlds_of(d)
+        wp.launch(
+            write_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._tbody_bodyid, st.force, st.torque, st.user],
+            outputs=[st.written, d.xfrc_applied], device=self.device,
+        )  # fmt: skip
+
+    def apply(self, d) -> None:
+        """Write user part + the last pass's wrench into d.xfrc_applied's tagged rows
+        (``take_user_part`` then ``write``)."""
+        self.take_user_part(d)
+        self.write(d)
+
     def passive(self, m, d) -> None:
-        """MuJoCo Warp's passive callback: ``compute`` then ``apply`` (``install``)."""
+        """MuJoCo Warp's passive callback (``install``): ``compute``, ``take_user_part``,
+        ``treat``, ``write``: five kernel launches, no host synchronisation."""
         self.compute(d)
-        self.apply(d)
+        self.take_user_part(d)
+        self.treat(m, d)
+        self.write(d)
 
     def install(self, m) -> None:
         """Make the field mjw.Model m's passive callback (chained after any callback already
         there), so every forward pass of ``mjw.step`` applies it. Raises ValueError for an
-        mjw.Model of another model."""
+        mjw.Model of another model, or an integrator the treatment does not support."""
         self._check_model(m)
+        if self._treats:
+            _check_integrator(m)
         prev = m.callback.passive
         if getattr(prev, "__self__", None) is self:
             return
@@ -492,6 +642,12 @@ class WarpField:
         out[:, self.body_ids, :3] = st.force.numpy()
         out[:, self.body_ids, 3:] = st.torque.numpy()
         return out
+
+    def decisions(self, d) -> np.ndarray:
+        """(nworld, ntbody) the last pass's low-speed decision per world and tagged body
+        (``body_ids`` order): 0 the pure model, 1 stuck, 2 slipping, 3 linearly implicit (the
+        engine's codes, ``GranularField.decision_of``); a copy."""
+        return self._worlds_of(d).decision.numpy().copy()
 
     def element_forces_of(self, d) -> np.ndarray:
         """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the engine's

@@ -128,7 +128,9 @@ class HexapodVecEnv:
         self.device = wp.get_device(device)
         self.control_timestep = float(control_timestep)
         self.time_limit = float(time_limit)
-        self.field = WarpField(self.mjm, material, n_triangles=n_triangles, device=device)
+        self.field = WarpField(
+            self.mjm, material, n_triangles=n_triangles, low_speed="free", device=device
+        )
         self._rng = np.random.default_rng(seed)
         self._mjd = mujoco.MjData(self.mjm)
         with wp.ScopedDevice(self.device):
