@@ -30,14 +30,11 @@ from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
 from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.warp import lowspeed as ls
-from mjrft.warp import surface
+from mjrft.warp import mechanism, surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
 from mjrft.warp.lowspeed import Elements, Medium, widen
 from mjrft.warp.quadrature import quadrature_point
 from mjrft.warp.surface import Surface
-
-#: The mechanism treatment (engine/mechanism.cc) is on the Warp field.
-MECHANISMS = False
 
 
 class UnsupportedScene(SceneError):
@@ -270,17 +267,14 @@ def _supported(scene: Scene) -> None:
         )
 
 
-def _supported_treatment(setup: FieldSetup) -> None:
-    """Raise UnsupportedScene if the scene asks for the mechanism treatment on a body in a
-    mechanism (low_speed="stick"), which the Warp field does not have yet."""
-    mech = np.asarray(setup.tables["tbody_mech"], dtype=bool)
-    if setup.scene.low_speed.mechanisms and mech.any() and not MECHANISMS:
-        names = ", ".join(repr(b.name) for b, on in zip(setup.bodies, mech, strict=True) if on)
-        raise UnsupportedScene(
-            "mjrft.warp: the low-speed treatment of bodies in mechanisms (low_speed='stick' on "
-            f"bodies moved by joints: {names}) is not supported yet; use low_speed='free' (free "
-            "bodies treated, the others the pure model) or 'off'"
-        )
+def _mech_sizes(nv: int, nk: int, nu: int) -> dict[str, int]:
+    """Per-world sizes of the mechanism treatment's state and scratch (mechanism.Mech)."""
+    return {
+        "time": 3, "qin": 2 * nv, "tau": nv, "prev": 6 * nk, "in_prev": 6 * nk, "held": nk,
+        "in_held": nk, "in_force": nu, "key": 19 * nk, "rcache": 6 * nk, "mm": nv * nv,
+        "lo": nv * nv, "jac": 6 * nk * nv, "x": 6 * nk * nv, "a": 36 * nk * nk,
+        "s": 36 * nk * nk, "u": nv, "g": nv, "rhs": 6 * nk, "out": 6 * nk, "rows": nk,
+    }  # fmt: skip
 
 
 def _check_integrator(m) -> None:
@@ -336,6 +330,7 @@ class _Worlds:
     written: wp.array  # (nworld, ntbody) spatial_vector: what the field last wrote there
     elem_force: wp.array  # (nworld, nelem) vec3d [N], or (1, 1) if not stored
     decision: wp.array  # (nworld, ntbody) int: the low-speed treatment's (lowspeed.PURE...)
+    mech: object  # mechanism.Mech: the mechanism treatment's per-world state, or None
     owner: weakref.ref  # the mjw.Data these belong to
 
 
@@ -365,8 +360,9 @@ class WarpField:
 
     The element tables are the engine's (``mjrft.field.plugin.setup``: the same meshing,
     culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine),
-    and so is the low-speed treatment of free bodies (``low_speed`` "stick" or "free";
-    mjrft.warp.lowspeed), under Euler, implicit and implicitfast; "off" is the pure model.
+    and so is the low-speed treatment: of free bodies (``low_speed`` "stick" or "free";
+    mjrft.warp.lowspeed) and of bodies in mechanisms ("stick"; mjrft.warp.mechanism), under
+    Euler, implicit and implicitfast; "off" is the pure model.
     """
 
     def __init__(
@@ -391,7 +387,6 @@ class WarpField:
         # engine's terms.
         _supported(scene_from_model(model, **options.given()))
         setup = plugin.setup(model, options)
-        _supported_treatment(setup)
         self.model = model
         #: The scene, its elements (body frame) and the engine's tables: the CPU engine's
         #: under the same options, one source for both.
@@ -436,11 +431,15 @@ class WarpField:
             setattr(self._elements, name, getattr(self, f"_elem_{name}"))
         for name in ("tgeom_elemadr", "tgeom_elemnum", "tbody_geomadr", "tbody_geomnum"):
             setattr(self._elements, name, arr(np.asarray(fm[name], dtype=np.int32), int))
+        self._elements.tgeom_geomid = self._tgeom_geomid
+        self._elements.tgeom_rbound = self._tgeom_rbound
         #: The low-speed treatment: "stick", "free" or "off" (the scene's, SceneOptions).
         self.low_speed = setup.scene.low_speed.mode
         self._treat = arr(np.asarray(fm["tbody_treat"], dtype=np.int32), int)
         self._treats = bool(fm["treat"]) and bool(np.any(fm["tbody_treat"]))
         self._reach = f64(fm["reach"])
+        mech = np.asarray(fm["tbody_mech"], dtype=bool)
+        self._mechs = bool(fm["treat"]) and bool(mech.any())
         self._jacobian_step = f64(fm["jacobian_step"])
         self._worlds: dict[int, _Worlds] = {}
 
@@ -453,6 +452,8 @@ class WarpField:
     def bytes_per_world(self) -> int:
         """Device memory [bytes] the field's arrays take per world."""
         per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24 + 4)
+        if self._mechs:
+            per += 8 * sum(_mech_sizes(self.model.nv, self.ntbody, self.model.nu).values())
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
     def _worlds_of(self, d) -> _Worlds:
@@ -475,6 +476,7 @@ class WarpField:
             written=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
             elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
             decision=wp.zeros((nworld, self.ntbody), dtype=int, device=dev),
+            mech=self._mech_state(nworld) if self._mechs else None,
             owner=weakref.ref(d),
         )
         # Forget the arrays of Data that no longer exist (their ids may be reused).
@@ -552,11 +554,16 @@ class WarpField:
         )  # fmt: skip
 
     def treat(self, m, d) -> None:
-        """The low-speed treatment of the free bodies (engine/lowspeed.cc) on the last
-        ``compute``'s wrenches, with the user part of xfrc_applied read by the last
-        ``take_user_part`` as the user's wrench; nothing under low_speed="off". Needs m, the
-        mjw.Model (mass, inertia, gravity, timestep per world). One launch."""
+        """The low-speed treatment on the last ``compute``'s wrenches: of the free bodies
+        (engine/lowspeed.cc; the user part of xfrc_applied read by the last ``take_user_part`` is
+        the user's wrench) and, under low_speed="stick", of the bodies in mechanisms
+        (engine/mechanism.cc: it reads the previous pass's qacc and records this pass, so call it
+        once per forward pass, as ``passive`` does); nothing under low_speed="off". Needs m, the
+        mjw.Model (mass, inertia, gravity, timestep per world). One launch for each."""
         st = self._worlds_of(d)
+        if self._mechs:
+            _check_integrator(m)
+            self._treat_mechanisms(m, d, st)
         if not self._treats:
             return
         _check_integrator(m)
@@ -571,6 +578,56 @@ class WarpField:
                     d.xpos, d.xmat, d.xipos, d.ximat, d.cvel, d.subtree_com, st.cull, st.user],
             outputs=[st.force, st.torque, st.decision], device=self.device,
         )  # fmt: skip
+
+    def _treat_mechanisms(self, m, d, st: _Worlds) -> None:
+        flags = int(m.opt.disableflags)
+        ld = mechanism.Loads()
+        ld.timestep = m.opt.timestep
+        ld.body_mass = m.body_mass
+        ld.body_inertia = m.body_inertia
+        ld.m_rownnz, ld.m_rowadr, ld.m_colind = m.M_rownnz, m.M_rowadr, m.M_colind
+        ld.gainprm, ld.biasprm = m.actuator_gainprm, m.actuator_biasprm
+        ld.ctrlrange, ld.forcerange = m.actuator_ctrlrange, m.actuator_forcerange
+        ld.actuation_on = int(not flags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
+        ld.clampctrl_on = int(not flags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL))
+        for name in ("time", "qvel", "qacc", "cdof", "act", "ctrl", "actuator_length",
+                     "actuator_velocity", "actuator_force", "moment_rownnz", "moment_rowadr",
+                     "moment_colind", "actuator_moment"):  # fmt: skip
+            setattr(ld, name, getattr(d, name))
+        ld.mass_matrix = d.M
+        kin = mechanism.Kin()
+        for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
+            setattr(kin, name, getattr(d, name))
+        wp.launch(
+            mechanism.mechanism_kernel, dim=st.nworld,
+            inputs=[self._elements, self._medium, self._tbody_bodyid, self._tbody_rootid, kin,
+                    ld, st.cull],
+            outputs=[st.mech, st.force, st.torque, st.decision], device=self.device,
+        )  # fmt: skip
+
+    def _mech_state(self, nworld: int):
+        """A Mech of zeroed per-world arrays for nworld worlds, with the field's tables."""
+        fm, dev, nv, nk = self.setup.tables, self.device, self.model.nv, self.ntbody
+        mc = mechanism.Mech()
+        mc.nv, mc.nk, mc.nu = nv, nk, self.model.nu
+        mc.reach = f64(fm["reach"])
+
+        def ints(x):
+            return wp.array(np.ascontiguousarray(x, dtype=np.int32), dtype=int, device=dev)
+
+        mc.tbody_mech = ints(fm["tbody_mech"])
+        mc.dofmask = ints(np.asarray(fm["tbody_dofmask"]).reshape(nk, max(nv, 1))[:, :nv])
+        size = np.zeros(nk)
+        for g, k in enumerate(fm["tgeom_tbody"]):
+            size[k] = max(size[k], fm["tgeom_rbound"][g])
+        mc.size = wp.array(size, dtype=f64, device=dev)
+        for name in ("affine", "gainaffine", "biasaffine", "actadr", "ctrllimited",
+                     "forcelimited"):  # fmt: skip
+            setattr(mc, name, ints(np.asarray(fm[f"actuator_{name}"]).reshape(-1)))
+        for name, size_ in _mech_sizes(nv, nk, self.model.nu).items():
+            dtype = int if name in ("held", "in_held", "rows") else f64
+            setattr(mc, name, wp.zeros((nworld, max(size_, 1)), dtype=dtype, device=dev))
+        return mc
 
     def write(self, d) -> None:
         """Write user part + the wrenches into d.xfrc_applied's tagged rows."""
@@ -600,7 +657,7 @@ class WarpField:
         there), so every forward pass of ``mjw.step`` applies it. Raises ValueError for an
         mjw.Model of another model, or an integrator the treatment does not support."""
         self._check_model(m)
-        if self._treats:
+        if self._treats or self._mechs:
             _check_integrator(m)
         prev = m.callback.passive
         if getattr(prev, "__self__", None) is self:

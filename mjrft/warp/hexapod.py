@@ -105,15 +105,16 @@ class HexapodVecEnv:
         downhill azimuth) [deg], a tilted plane; no deforming ground).
     Action: (nworld, 2) gait frequency [Hz] in [0, 4] and tripod B's phase offset [rad].
     Observation: (nworld, OBS_SIZE) float32, the columns of OBSERVATIONS (frames and units as
-    ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. The field has no low-speed
-    treatment (docs/gpu.md): standing still, the robot creeps as under the engine's pure model
-    (``low_speed="off"``).
+    ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. low_speed: the field's low-speed
+    treatment (default the MJCF's, "stick": legs standing in the medium are held as by the
+    engine; docs/gpu.md).
     """
 
     def __init__(self, nworld: int, *, device: str | None = None, control_timestep: float = 0.02,
                  time_limit: float = 20.0, seed: int = 0, material=None,
                  n_triangles: int | None = None,
-                 slope: tuple[float, float] | None = None) -> None:  # fmt: skip
+                 slope: tuple[float, float] | None = None,
+                 low_speed: str | None = None) -> None:  # fmt: skip
         #: The hexapod compiled without the engine plugin (MuJoCo Warp runs no C plugins; the
         #: field is the WarpField).
         self.mjm = build_spec(slope=slope).compile()
@@ -129,7 +130,7 @@ class HexapodVecEnv:
         self.control_timestep = float(control_timestep)
         self.time_limit = float(time_limit)
         self.field = WarpField(
-            self.mjm, material, n_triangles=n_triangles, low_speed="free", device=device
+            self.mjm, material, n_triangles=n_triangles, low_speed=low_speed, device=device
         )
         self._rng = np.random.default_rng(seed)
         self._mjd = mujoco.MjData(self.mjm)

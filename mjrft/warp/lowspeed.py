@@ -57,7 +57,8 @@ class Medium:
 
 @wp.struct
 class Elements:
-    """The element tables (body frame) and their grouping by tagged geom and body."""
+    """The element tables (body frame), their grouping by tagged geom and body, and the tagged
+    geoms' ids and bounding radii [m]."""
 
     pos: wp.array(dtype=vec3d)
     normal: wp.array(dtype=vec3d)
@@ -66,6 +67,8 @@ class Elements:
     patch: wp.array2d(dtype=f64)
     tgeom_elemadr: wp.array(dtype=int)
     tgeom_elemnum: wp.array(dtype=int)
+    tgeom_geomid: wp.array(dtype=int)
+    tgeom_rbound: wp.array(dtype=f64)
     tbody_geomadr: wp.array(dtype=int)
     tbody_geomnum: wp.array(dtype=int)
 
