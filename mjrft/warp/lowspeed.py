@@ -402,3 +402,78 @@ def treat_body(
         el, medium, cull, at, body, six(v_free, om_free), dt, semi, w, sq + dxi > _Z
     )
     return dec, f2
+
+
+@wp.kernel
+def treat_kernel(
+    # Model
+    el: Elements, medium: Medium, tbody_bodyid: wp.array(dtype=int),
+    tbody_rootid: wp.array(dtype=int), tbody_treat: wp.array(dtype=int), reach: f64, h_rel: f64,
+    semi: int, gravity_on: int, timestep: wp.array(dtype=float), gravity: wp.array(dtype=wp.vec3),
+    body_mass: wp.array2d(dtype=float), body_inertia: wp.array2d(dtype=wp.vec3),
+    body_gravcomp: wp.array2d(dtype=float),
+    # Data in
+    xpos: wp.array2d(dtype=wp.vec3), xmat: wp.array2d(dtype=wp.mat33),
+    xipos: wp.array2d(dtype=wp.vec3), ximat: wp.array2d(dtype=wp.mat33),
+    cvel: wp.array2d(dtype=wp.spatial_vector), subtree_com: wp.array2d(dtype=wp.vec3),
+    cull: wp.array2d(dtype=int), user: wp.array2d(dtype=wp.spatial_vector),
+    # Data in and out
+    force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
+    # Data out
+    decision: wp.array2d(dtype=int),
+):  # fmt: skip
+    """The low-speed treatment of tagged free body k in world w (engine lowspeed::TreatAll):
+    force, torque hold its pure wrench and get the treated one; decision[w, k] its decision."""
+    w, k = wp.tid()
+    decision[w, k] = PURE
+    if tbody_treat[k] == 0:
+        return
+    dt = f64(timestep[w % timestep.shape[0]])
+    if not (dt > f64(0.0)):
+        return
+    in_play = int(0)
+    g0 = el.tbody_geomadr[k]
+    for g in range(g0, g0 + el.tbody_geomnum[k]):
+        if cull[w, g] == 0:
+            in_play = 1
+    if in_play == 0:
+        return
+    b = tbody_bodyid[k]
+    wm = w % body_mass.shape[0]
+    mass = f64(body_mass[wm, b])
+    inertia = widen(body_inertia[w % body_inertia.shape[0], b])
+    if not (mass > f64(0.0) and inertia[0] > f64(0.0) and inertia[1] > f64(0.0)
+            and inertia[2] > f64(0.0)):  # fmt: skip
+        return
+    gvec = vec3d(f64(0.0), f64(0.0), f64(0.0))
+    if gravity_on != 0:
+        comp = f64(body_gravcomp[w % body_gravcomp.shape[0], b])
+        gvec = widen(gravity[w % gravity.shape[0]]) * (f64(1.0) - comp)
+    x = widen_mat(ximat[w, b])
+    body = Body()
+    body.iw = x * wp.diag(inertia) * wp.transpose(x)
+    body.ii = x * wp.diag(vec3d(f64(1.0) / inertia[0], f64(1.0) / inertia[1],
+                                f64(1.0) / inertia[2])) * wp.transpose(x)  # fmt: skip
+    body.mass = mass
+    tw = cvel[w, b]
+    om = vec3d(f64(tw[0]), f64(tw[1]), f64(tw[2]))
+    com = widen(xipos[w, b])
+    r = com - widen(subtree_com[w, tbody_rootid[k]])
+    v = vec3d(f64(tw[3]), f64(tw[4]), f64(tw[5])) + wp.cross(om, r)
+    u32 = user[w, k]
+    u = vec6d()
+    for c in range(6):
+        u[c] = f64(u32[c])
+    body.twist = six(v, om)
+    body.other = six(mass * gvec + lin(u), ang(u) - wp.cross(om, body.iw * om))
+    at = Pose()
+    at.w = w
+    at.k = k
+    at.rot = widen_mat(xmat[w, b])
+    at.origin = widen(xpos[w, b])
+    at.com = com
+    pure = six(force[w, k], torque[w, k])
+    dec, f = treat_body(el, medium, cull, at, body, gvec, u, dt, semi, pure, reach, h_rel)
+    force[w, k] = lin(f)
+    torque[w, k] = ang(f)
+    decision[w, k] = dec
