@@ -292,11 +292,6 @@ SCENE = """
     ("extra", "named"),
     [
         ('<text name="mjrft:model" data="agarwal3d"/>', "agarwal3d"),
-        (
-            '<numeric name="mjrft:region" data="-0.1 -0.1 -0.1 0.1 0.1 0.1"/>'
-            '<numeric name="mjrft:deform_cell" data="0.005"/>',
-            "deforming ground",
-        ),
     ],
 )
 def test_unsupported_scenes_are_named(extra, named):

@@ -30,7 +30,7 @@ from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
 from mjrft.field.scene import Scene, SceneError, scene_from_model
 from mjrft.warp import lowspeed as ls
-from mjrft.warp import mechanism, surface
+from mjrft.warp import mechanism, soil, surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
 from mjrft.warp.lowspeed import Elements, Medium, widen
 from mjrft.warp.quadrature import quadrature_point
@@ -59,7 +59,9 @@ def cull_kernel(
     if r > f64(0.0):
         p = geom_xpos[w, tgeom_geomid[g]]
         c = vec3d(f64(p[0]), f64(p[1]), f64(p[2]))
-        if c[2] - r >= surface.highest_near(medium.surface, c[0], c[1], r):
+        sf = medium.surface
+        sf.w = w
+        if c[2] - r >= surface.highest_near(sf, c[0], c[1], r):
             out = 1
         if medium.use_region != 0:
             for i in range(3):
@@ -89,6 +91,8 @@ def element_kernel(
     adds)."""
     w, i = wp.tid()
     g = elem_tgeom[i]
+    sf = medium.surface
+    sf.w = w
     f = vec3d(f64(0.0), f64(0.0), f64(0.0))
     if cull[w, g] == 0:
         k = tgeom_tbody[g]
@@ -106,7 +110,7 @@ def element_kernel(
         q = quadrature_point(
             elem_pos[i], elem_normal[i], elem_area[i], elem_reach[i], elem_patch, i, rot,
             widen(xpos[w, b]), omega, v_ref, widen(subtree_com[w, tbody_rootid[k]]),
-            medium.surface, medium.use_region, medium.region_lo, medium.region_hi,
+            sf, medium.use_region, medium.region_lo, medium.region_hi,
         )  # fmt: skip
         if q.w > f64(0.0):
             f = element_force(q.n, q.v, q.w, q.a, medium.co, medium.ay, medium.zeta, medium.lam_rho)
@@ -184,12 +188,6 @@ def _supported(scene: Scene) -> None:
             f"mjrft.warp: {what} ({m.name!r}) is not supported yet; the Warp field evaluates "
             "Fourier-form media under the treers2021 model (a preset or mjrft:coefficients)"
         )
-    if scene.surface.kind == core_surface.SOIL:
-        raise UnsupportedScene(
-            "mjrft.warp: the deforming ground (mjrft:deform_cell) is not supported yet; the Warp "
-            "field has fixed surfaces: flat, tilted (mjrft:surface_slope) or a height field "
-            "(mjrft:surface_hfield)"
-        )
 
 
 def _mech_sizes(nv: int, nk: int, nu: int) -> dict[str, int]:
@@ -256,6 +254,9 @@ class _Worlds:
     elem_force: wp.array  # (nworld, nelem) vec3d [N], or (1, 1) if not stored
     decision: wp.array  # (nworld, ntbody) int: the low-speed treatment's (lowspeed.PURE...)
     mech: object  # mechanism.Mech: the mechanism treatment's per-world state, or None
+    medium: Medium  # the medium, its surface reading these worlds' soil blocks if it deforms
+    ground: object  # soil.Ground: the deforming ground's per-world state and work, or None
+    soil: wp.array  # (nworld, block) the deforming ground's blocks (engine surface.h), or None
     owner: weakref.ref  # the mjw.Data these belong to
 
 
@@ -366,7 +367,39 @@ class WarpField:
         mech = np.asarray(fm["tbody_mech"], dtype=bool)
         self._mechs = bool(fm["treat"]) and bool(mech.any())
         self._jacobian_step = f64(fm["jacobian_step"])
+        #: The model's timestep [s] (the deforming ground's deform_every > 1 counts steps by it).
+        self._dt = wp.array([float(model.opt.timestep)], dtype=float, device=dev)
         self._worlds: dict[int, _Worlds] = {}
+
+    @property
+    def deforms(self) -> bool:
+        """True if the ground deforms (``mjrft:deform_cell``): a height grid per world."""
+        return self.setup.scene.surface.kind == core_surface.SOIL
+
+    def _ground_state(self, st: _Worlds) -> None:
+        """The deforming ground's per-world arrays of st (blocks as the engine starts them:
+        zeros, floors +inf, no owners), and st.medium reading its soil blocks."""
+        fm, dev, nworld = self.setup.tables, self.device, st.nworld
+        n = int(fm["surface_nrow"]) * int(fm["surface_ncol"])
+        st.soil = wp.zeros((nworld, int(fm["nsoil"])), dtype=f64, device=dev)
+        gr = soil.Ground()
+        gr.floor = wp.array(np.full((nworld, n), np.inf), dtype=f64, device=dev)
+        gr.owner = wp.array(np.full((nworld, n), -1, dtype=np.int32), dtype=int, device=dev)
+        gr.queue = wp.zeros((nworld, n), dtype=int, device=dev)
+        gr.work = wp.zeros((nworld, n), dtype=f64, device=dev)
+        gr.box = wp.zeros((nworld, 4 * (self.ntbody + 3)), dtype=f64, device=dev)
+        gr.stats = wp.zeros((nworld, soil.N_STATS), dtype=f64, device=dev)
+        gr.status = wp.array(np.full(nworld, -1, dtype=np.int32), dtype=int, device=dev)
+        vert = np.asarray(fm["elem_vert"], dtype=np.float64).reshape(-1, 9)
+        gr.elem_vert = wp.array(np.ascontiguousarray(vert), dtype=f64, device=dev)
+        gr.zlo = f64(np.asarray(fm["region"], dtype=np.float64).reshape(2, 3)[0, 2])
+        gr.nk = self.ntbody
+        st.ground = gr
+        med = Medium()
+        for name in Medium.vars:
+            setattr(med, name, getattr(self._medium, name))
+        med.surface = surface.with_soil(self._medium.surface, st.soil)
+        st.medium = med
 
     @property
     def surface(self) -> Surface:
@@ -379,6 +412,10 @@ class WarpField:
         per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24 + 4)
         if self._mechs:
             per += 8 * sum(_mech_sizes(self.model.nv, self.ntbody, self.model.nu).values())
+        if self.deforms:
+            n = int(self.setup.tables["surface_nrow"]) * int(self.setup.tables["surface_ncol"])
+            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * (self.ntbody + 3)
+            per += 8 * soil.N_STATS + 4
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
     def _worlds_of(self, d) -> _Worlds:
@@ -402,8 +439,13 @@ class WarpField:
             elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
             decision=wp.zeros((nworld, self.ntbody), dtype=int, device=dev),
             mech=self._mech_state(nworld) if self._mechs else None,
+            medium=self._medium,
+            ground=None,
+            soil=None,
             owner=weakref.ref(d),
         )
+        if self.deforms:
+            self._ground_state(st)
         # Forget the arrays of Data that no longer exist (their ids may be reused).
         self._worlds = {k: v for k, v in self._worlds.items() if v.owner() is not None}
         self._worlds[id(d)] = st
@@ -452,9 +494,17 @@ class WarpField:
         ``wrenches``. Launches two kernels; graph-capturable once ``prepare(d)`` ran."""
         st = self._worlds_of(d)
         dev = self.device
+        if st.ground is not None:  # the ground follows the intruders first (engine step 3)
+            wp.launch(
+                soil.deform_kernel, dim=st.nworld,
+                inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid,
+                        self._dt, d.time, d.xpos, d.xmat, d.cvel, d.subtree_com,
+                        d.geom_xpos],
+                outputs=[st.ground], device=dev,
+            )  # fmt: skip
         wp.launch(
             cull_kernel, dim=(st.nworld, self.ntgeom),
-            inputs=[self._tgeom_geomid, self._tgeom_rbound, self._medium, d.geom_xpos],
+            inputs=[self._tgeom_geomid, self._tgeom_rbound, st.medium, d.geom_xpos],
             outputs=[st.cull], device=dev,
         )  # fmt: skip
         st.force.zero_()
@@ -463,7 +513,7 @@ class WarpField:
             element_kernel, dim=(st.nworld, self.nelem),
             inputs=[self._elem_pos, self._elem_normal, self._elem_area, self._elem_reach,
                     self._elem_patch, self._elem_tgeom, self._tgeom_tbody, self._tbody_bodyid,
-                    self._tbody_rootid, self._medium, int(self.store_element_forces), d.xpos,
+                    self._tbody_rootid, st.medium, int(self.store_element_forces), d.xpos,
                     d.xmat, d.xipos, d.cvel, d.subtree_com, st.cull],
             outputs=[st.force, st.torque, st.elem_force], device=dev,
         )  # fmt: skip
@@ -497,7 +547,7 @@ class WarpField:
         semi = int(int(opt.integrator) != int(mujoco.mjtIntegrator.mjINT_RK4))
         wp.launch(
             ls.treat_kernel, dim=(st.nworld, self.ntbody),
-            inputs=[self._elements, self._medium, self._tbody_bodyid, self._tbody_rootid,
+            inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid,
                     self._treat, self._reach, self._jacobian_step, semi, gravity_on,
                     opt.timestep, opt.gravity, m.body_mass, m.body_inertia, m.body_gravcomp,
                     d.xpos, d.xmat, d.xipos, d.ximat, d.cvel, d.subtree_com, st.cull, st.user],
@@ -525,7 +575,7 @@ class WarpField:
             setattr(kin, name, getattr(d, name))
         wp.launch(
             mechanism.mechanism_kernel, dim=st.nworld,
-            inputs=[self._elements, self._medium, self._tbody_bodyid, self._tbody_rootid, kin,
+            inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid, kin,
                     ld, st.cull],
             outputs=[st.mech, st.force, st.torque, st.decision], device=self.device,
         )  # fmt: skip
@@ -630,6 +680,24 @@ class WarpField:
         (``body_ids`` order): 0 the pure model, 1 stuck, 2 slipping, 3 linearly implicit (the
         engine's codes, ``GranularField.decision_of``); a copy."""
         return self._worlds_of(d).decision.numpy().copy()
+
+    def soil_blocks(self, d) -> np.ndarray:
+        """(nworld, block) each world's deforming ground, the engine's soil block (engine
+        surface.h: head, then the offsets of the surface h and the compacted level c from the
+        initial heights and the memory p [m], nrow x ncol each, row-major); a copy."""
+        st = self._worlds_of(d)
+        if st.soil is None:
+            raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
+        return st.soil.numpy().copy()
+
+    def below_ground(self, d) -> np.ndarray:
+        """(nworld,) per world the tagged body (``body_ids`` index) that reached below the
+        deforming ground's bottom (mjrft:region zmin) in the last update, else -1. The engine
+        raises there; a kernel cannot, so the ground leaves that body's columns uncut."""
+        st = self._worlds_of(d)
+        if st.ground is None:
+            return np.full(st.nworld, -1)
+        return st.ground.status.numpy().copy()
 
     def element_forces_of(self, d) -> np.ndarray:
         """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the engine's

@@ -112,6 +112,8 @@ def twist_wrench(
     force [N], torque about the CoM com [N m] (the engine's TwistWrench)."""
     f = vec3d(_Z, _Z, _Z)
     t = vec3d(_Z, _Z, _Z)
+    sf = medium.surface
+    sf.w = w
     g0 = el.tbody_geomadr[k]
     for g in range(g0, g0 + el.tbody_geomnum[k]):
         if cull[w, g] != 0:
@@ -120,8 +122,7 @@ def twist_wrench(
         for i in range(e0, e0 + el.tgeom_elemnum[g]):
             q = quadrature_point(
                 el.pos[i], el.normal[i], el.area[i], el.reach[i], el.patch, i, rot, origin,
-                omega, v, com, medium.surface, medium.use_region, medium.region_lo,
-                medium.region_hi,
+                omega, v, com, sf, medium.use_region, medium.region_lo, medium.region_hi,
             )  # fmt: skip
             if q.w > _Z:
                 fe = element_force(

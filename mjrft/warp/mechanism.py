@@ -227,16 +227,18 @@ def submerged(
     Submerged)."""
     pos = ls.widen(kin.xpos[w, b])
     rot = ls.widen_mat(kin.xmat[w, b])
-    flat = medium.surface.kind == surface.FLAT
+    sf = medium.surface
+    sf.w = w
+    flat = sf.kind == surface.FLAT
     g0 = el.tbody_geomadr[k]
     for g in range(g0, g0 + el.tbody_geomnum[k]):
         if cull[w, g] != 0:
             continue
         r = el.tgeom_rbound[g]
-        top = surface.ceiling(medium.surface)
+        top = surface.ceiling(sf)
         if r > _Z:
             c = ls.widen(kin.geom_xpos[w, el.tgeom_geomid[g]])
-            top = surface.highest_near(medium.surface, c[0], c[1], r)
+            top = surface.highest_near(sf, c[0], c[1], r)
         e0 = el.tgeom_elemadr[g]
         for e in range(e0, e0 + el.tgeom_elemnum[g]):
             p = rot * el.pos[e] + pos
@@ -244,7 +246,7 @@ def submerged(
                 if p[2] < top:
                     return True
                 continue
-            if surface.depth(medium.surface, p) > _Z:
+            if surface.depth(sf, p) > _Z:
                 return True
     return False
 
