@@ -5,8 +5,10 @@ For each model (the hexapod standing in the medium, the ellipsoid rig driven int
 nworld: steps per second summed over worlds with the field off ("off"), on as the pure model
 ("on", low_speed="off") and on with the low-speed treatment ("treated", the MJCF's default
 low_speed="stick": free bodies and bodies in mechanisms), and the per-step split (the field's
-own pass, `WarpField.passive`, against the step with it); for the hexapod also the vector
-environment (`HexapodVecEnv.advance`: gait controller, 20 physics steps with the treated field,
+own pass, `WarpField.passive`, against the step with it); for the hexapod also the treated field
+on a deforming ground ("ground": 5 mm cells over 0.6 x 0.4 m; its field time is the step with
+it less the step without, since the ground moves once per time) and the vector environment
+(`HexapodVecEnv.advance`: gait controller, 20 physics steps with the treated field,
 observations and reward on the device), as physics steps per second.
 
 `--standing` instead runs the hexapod standing still (gait stopped) from its keyframe for
@@ -83,6 +85,18 @@ def timed(device, fn, steps: int, repeats: int) -> float:
     return float(np.median(times))
 
 
+#: The deforming ground of the "ground" column: cell [m] over the region (x0 y0 z0 x1 y1 z1) [m].
+GROUND_CELL, GROUND_REGION = 0.005, (-0.3, -0.2, -0.1, 0.3, 0.2, 0.05)
+
+
+def with_ground(name: str) -> mujoco.MjModel:
+    """The rig compiled with a deforming ground (mjrft:deform_cell over mjrft:region)."""
+    spec = mujoco.MjSpec.from_file(str(MODELS / f"{name}.xml"))
+    spec.add_numeric(name="mjrft:region", data=list(GROUND_REGION), size=6)
+    spec.add_numeric(name="mjrft:deform_cell", data=[GROUND_CELL], size=1)
+    return spec.compile()
+
+
 def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[dict]:
     mjm = mujoco.MjModel.from_xml_path(str(MODELS / f"{name}.xml"))
     mjd = mujoco.MjData(mjm)
@@ -92,6 +106,8 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
         "on": WarpField(mjm, low_speed="off", device=str(device)),
         "treated": WarpField(mjm, device=str(device)),
     }
+    if name == "hexapod_sand":
+        fields["ground"] = WarpField(with_ground(name), device=str(device))
     qpos, qvel = initial_state(name, mjm, mjd, nworld)
     timings, rft = [], {}
     with wp.ScopedDevice(device):
@@ -103,10 +119,13 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
         timings.append(("off", timed(device, lambda: mjw.step(m, d), steps, repeats)))
         for label, field in fields.items():
             field.prepare(d)
-            rft[label] = timed(device, lambda f=field: f.passive(m, d), steps, repeats)
+            if label != "ground":  # the ground moves once per time: its pass is timed in steps
+                rft[label] = timed(device, lambda f=field: f.passive(m, d), steps, repeats)
             with field.installed(m, d):
                 timings.append((label, timed(device, lambda: mjw.step(m, d), steps, repeats)))
     rft["env"] = rft["treated"]
+    if "ground" in fields:  # the step with the field less the step without it
+        rft["ground"] = dict(timings)["ground"] - dict(timings)["off"]
     field = fields["on"]
     rows = []
     if name == "hexapod_sand":  # the vector environment: control steps of 20 physics steps
@@ -123,7 +142,7 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
                 "model": name, "nworld": nworld, "triangles": field.nelem, "field": label,
                 "steps_per_s": f"{nworld * steps / t:.4g}", "step_us": f"{t / steps * 1e6:.1f}",
                 "rft_us": f"{rft[label] / steps * 1e6:.1f}" if label != "off" else "",
-                "rft_share": f"{rft[label] / t:.3f}" if label in ("on", "treated") else "",
+                "rft_share": f"{rft[label] / t:.3f}" if label not in ("off", "env") else "",
             }
         )  # fmt: skip
     return rows

@@ -352,7 +352,7 @@ def test_the_gpu_benchmark_runs_on_the_cpu_device(tmp_path):
         ["--device", DEVICE, "--nworld", "2", "--models", "hexapod_sand", "--steps", "20",
          "--repeats", "1", "--out", str(out)]
     )  # fmt: skip
-    assert [r["field"] for r in rows] == ["off", "on", "treated", "env"]
+    assert [r["field"] for r in rows] == ["off", "on", "treated", "ground", "env"]
     for r in rows:
         assert float(r["steps_per_s"]) > 0.0
     assert 0.0 < float(rows[1]["rft_share"]) < 1.0 and 0.0 < float(rows[2]["rft_share"]) < 1.0
