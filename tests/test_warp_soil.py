@@ -75,7 +75,8 @@ def follow(xml: str, ctrl: np.ndarray, nstep: int):
                     dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
                 cd.time = float(time[w])
                 cpu_wrench[w] = cpu.wrench(cd)
-        wrench = field.wrenches(d)  # the last pass's (leaving `installed` clears them)
+        wrench = field.wrenches(d)
+    np.testing.assert_array_equal(field.wrenches(d), wrench)  # leaving `installed` keeps them
     want = np.array([cpu.state_array(cd, "soil") for cd in cpu_d])
     excavated = np.array([cpu.soil(cd).counters["excavated"] for cd in cpu_d])
     assert np.all(field.below_ground(d) == -1)
@@ -106,3 +107,31 @@ def test_each_worlds_ground_is_the_engines(xml, ctrl, nstep):
     for w in range(len(got)):
         volume = got[w, cs.SOIL_HEAD : cs.SOIL_HEAD + n].sum() * 0.0025**2
         assert abs(volume) <= VOLUME_RTOL * excavated[w]
+
+
+def test_reset_starts_the_ground_over_in_the_worlds_given():
+    """After a press, world 0 is reset: its ground is the initial surface again (and is pressed
+    anew by the next steps) and the mechanism treatment's records of its plate's carriage are
+    cleared; world 1 keeps both."""
+    plain = mujoco.MjModel.from_xml_string(PLATE)
+    field = mw.WarpField(plain, device=DEVICE)
+    m = mjw.put_model(plain)
+    d = mjw.put_data(plain, mujoco.MjData(plain), nworld=2)
+    d.ctrl.assign(np.array([[-0.008], [-0.008]], dtype=np.float32))
+    with field.installed(m, d):
+        for _ in range(30):
+            mjw.step(m, d)
+        pressed = field.soil_blocks(d)
+        assert np.all(np.abs(pressed[:, cs.SOIL_HEAD :]).max(axis=1) > 1e-3)
+        mech = field._worlds_of(d).mech  # the records of the last pass (white box)
+        records = mech.time.numpy().copy(), mech.qin.numpy().copy()
+        assert np.all(records[0][:, 1] == 1.0) and np.all(np.abs(records[1]).max(axis=1) > 0.0)
+        field.reset(d, [True, False])
+        after = field.soil_blocks(d)
+        assert np.all(after[0] == 0.0)
+        np.testing.assert_array_equal(after[1], pressed[1])
+        for arr, before in zip((mech.time, mech.qin), records, strict=True):
+            assert np.all(arr.numpy()[0] == 0.0)
+            np.testing.assert_array_equal(arr.numpy()[1], before[1])
+        mjw.step(m, d)  # the plate is still down there: world 0 is pressed again
+    assert np.abs(field.soil_blocks(d)[0, cs.SOIL_HEAD :]).max() > 1e-3

@@ -144,6 +144,45 @@ def user_kernel(
 
 
 @wp.kernel
+def restore_kernel(
+    # Model
+    tbody_bodyid: wp.array(dtype=int),
+    # Data in
+    user: wp.array2d(dtype=wp.spatial_vector),
+    # Data out
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+):  # fmt: skip
+    """xfrc_applied row of tagged body k = its user part (the field's wrench taken out)."""
+    w, k = wp.tid()
+    written[w, k] = user[w, k]
+    xfrc_applied[w, tbody_bodyid[k]] = user[w, k]
+
+
+@wp.kernel
+def fill_rows_kernel(
+    mask: wp.array(dtype=int), value: f64,
+    # Data out
+    arr: wp.array2d(dtype=f64),
+):  # fmt: skip
+    """arr[w, i] = value in the worlds w where mask[w] != 0."""
+    w, i = wp.tid()
+    if mask[w] != 0:
+        arr[w, i] = value
+
+
+@wp.kernel
+def fill_int_rows_kernel(
+    mask: wp.array(dtype=int), value: int,
+    # Data out
+    arr: wp.array2d(dtype=int),
+):  # fmt: skip
+    """arr[w, i] = value in the worlds w where mask[w] != 0."""
+    w, i = wp.tid()
+    if mask[w] != 0:
+        arr[w, i] = value
+
+
+@wp.kernel
 def write_kernel(
     # Model
     tbody_bodyid: wp.array(dtype=int),
@@ -651,9 +690,41 @@ class WarpField:
         m.callback.passive = getattr(self, "_prev", None)
         if d is not None:
             st = self._worlds_of(d)
-            st.force.zero_()
-            st.torque.zero_()
-            self.apply(d)
+            self.take_user_part(d)
+            wp.launch(
+                restore_kernel, dim=(st.nworld, self.ntbody),
+                inputs=[self._tbody_bodyid, st.user], outputs=[st.written, d.xfrc_applied],
+                device=self.device,
+            )  # fmt: skip
+
+    def reset(self, d, worlds=None) -> None:
+        """Start the field's state over in the worlds of d given by worlds ((nworld,) bool or
+        0/1, NumPy or a Warp int array on the device; None: every world), as mj_resetData does
+        for the engine's: the deforming ground back to its initial surface, the mechanism
+        treatment's records of the previous pass cleared (its next pass is the pure model). Call
+        it when you reset those worlds' state; launches kernels only (capturable) given a Warp
+        mask."""
+        st = self._worlds_of(d)
+        if worlds is None:
+            worlds = np.ones(st.nworld, dtype=np.int32)
+        if not isinstance(worlds, wp.array):
+            worlds = np.asarray(worlds).astype(np.int32).reshape(-1)
+            if worlds.shape != (st.nworld,):
+                raise ValueError(f"worlds: expected shape ({st.nworld},), got {worlds.shape}")
+            worlds = wp.array(worlds, dtype=int, device=self.device)
+        arrays = []  # (array, value)
+        if st.ground is not None:
+            gr = st.ground
+            arrays += [(st.soil, 0.0), (gr.floor, np.inf), (gr.owner, -1), (gr.box, 0.0)]
+        if st.mech is not None:
+            arrays += [(getattr(st.mech, name), 0) for name in _mech_sizes(1, 1, 1)]
+        for arr, value in arrays:
+            kernel = fill_int_rows_kernel if arr.dtype == wp.int32 else fill_rows_kernel
+            cast = int if arr.dtype == wp.int32 else f64
+            wp.launch(
+                kernel, dim=arr.shape, inputs=[worlds, cast(value)], outputs=[arr],
+                device=self.device,
+            )  # fmt: skip
 
     @contextlib.contextmanager
     def installed(self, m, d=None):

@@ -177,6 +177,7 @@ class HexapodVecEnv:
         d.qvel.zero_()
         d.ctrl.zero_()
         d.time.zero_()
+        self.field.reset(d)  # the treatment's records of the previous episode
         mjw.forward(self.m, d)
         self._x_prev.assign(qpos[:, 0].astype(np.float32))
         self._observe()
