@@ -11,11 +11,12 @@ it less the step without, since the ground moves once per time) and the vector e
 (`HexapodVecEnv.advance`: gait controller, 20 physics steps with the treated field,
 observations and reward on the device), as physics steps per second.
 
-`--standing` instead runs the hexapod standing still (gait stopped) from its keyframe for
-`--seconds` (default 5) at dt 1 and 2 ms under Euler and implicitfast, `--nworld` worlds at
-once, and prints the torso's drift over the last second and the largest step-to-step change of
-the total vertical RFT force over it, as a fraction of the weight (the targets: <= 1e-5 m and
-<= 1 %); writes benchmarks/results/gpu_standing.csv.
+`--standing` instead runs the hexapod standing still (gait stopped) from its keyframe, and a
+quadruped of two-joint legs (QUADRUPED) from its initial state, for `--seconds` (default 5) at
+dt 1 and 2 ms under Euler and implicitfast, `--nworld` worlds at once, and prints the torso's
+drift over the last second and the largest step-to-step change of the total vertical RFT force
+over it, as a fraction of the weight (the targets: <= 1e-5 m and <= 1 %); writes
+benchmarks/results/gpu_standing.csv.
 On a CUDA device each timed loop is one captured CUDA graph of N steps, replayed (the first
 replay is discarded); on the CPU device the steps are launched one by one. Every figure is the
 median of --repeats timings. Writes benchmarks/results/gpu.csv.
@@ -148,7 +149,46 @@ def measure(name: str, nworld: int, device, steps: int, repeats: int) -> list[di
     return rows
 
 
+_LEG = """
+  <body name="thigh_{n}" pos="{x} {y} 0">
+    <joint name="hip_{n}" axis="0 1 0" range="-1 1" armature="0.0005" damping="0.01"/>
+    <geom type="capsule" fromto="0 0 0 0 0 -0.06" size="0.008" mass="0.05"/>
+    <body name="shin_{n}" pos="0 0 -0.06">
+      <joint name="knee_{n}" axis="0 1 0" range="-1.5 1.5" armature="0.0005" damping="0.01"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -0.06" size="0.006" mass="0.03"/>
+      <geom name="foot_{n}" type="sphere" pos="0 0 -0.06" size="0.012" mass="0.02"/>
+    </body>
+  </body>"""
+_LEGS = (("LF", 0.08, 0.05), ("RF", 0.08, -0.05), ("LH", -0.08, 0.05), ("RH", -0.08, -0.05))
+#: A quadruped of two-joint legs (hip and knee position servos holding 0) standing on four ball
+#: feet in glass beads, 1.4 kg: the second robot of the standing check.
+QUADRUPED = f"""<mujoco model="quadruped_sand">
+  <option timestep="0.001" integrator="Euler"><flag contact="disable"/></option>
+  <custom>
+    <text name="mjrft:material" data="glass_beads"/>
+    <tuple name="mjrft:intruders">{
+    "".join(f'<element objtype="geom" objname="foot_{n}" prm="200"/>' for n, _, _ in _LEGS)
+}</tuple>
+  </custom>
+  <worldbody>
+    <body name="torso" pos="0 0 0.125">
+      <freejoint/>
+      <geom type="box" size="0.1 0.05 0.02" mass="1.0"/>
+      {"".join(_LEG.format(n=n, x=x, y=y) for n, x, y in _LEGS)}
+    </body>
+  </worldbody>
+  <actuator>{
+    "".join(
+        f'<position joint="{j}_{n}" kp="8" kv="0.05"/>'
+        for n, _, _ in _LEGS
+        for j in ("hip", "knee")
+    )
+}</actuator>
+</mujoco>"""
+
+
 STANDING_FIELDS = (
+    "robot",
     "integrator",
     "dt_ms",
     "nworld",
@@ -159,15 +199,20 @@ STANDING_FIELDS = (
 )
 
 
-def stand(device, integrator: str, dt: float, nworld: int, seconds: float) -> dict:
-    """The hexapod standing (gait stopped) from its keyframe with the treated field: the
-    torso's largest drift [m] over the last second, over all worlds, and the largest
-    step-to-step change of the total vertical RFT force there over the weight."""
-    mjm = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
+def stand(device, robot: str, integrator: str, dt: float, nworld: int, seconds: float) -> dict:
+    """A robot standing with the treated field (the hexapod from its keyframe, gait stopped;
+    the quadruped from its initial state): the torso's largest drift [m] over the last second,
+    over all worlds, and the largest step-to-step change of the total vertical RFT force there
+    over the weight."""
+    if robot == "hexapod":
+        mjm = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
+    else:
+        mjm = mujoco.MjModel.from_xml_string(QUADRUPED)
     mjm.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     mjm.opt.timestep = dt
     mjd = mujoco.MjData(mjm)
-    mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
+    if mjm.nkey:
+        mujoco.mj_resetDataKeyframe(mjm, mjd, 0)
     mjd.ctrl[:] = 0.0
     mjd.qvel[:] = 0.0
     field = WarpField(mjm, device=str(device))
@@ -187,7 +232,7 @@ def stand(device, integrator: str, dt: float, nworld: int, seconds: float) -> di
         elapsed = time.perf_counter() - t
     pos, fz = np.array(pos), np.array(fz)
     return {
-        "integrator": integrator, "dt_ms": f"{dt * 1e3:g}", "nworld": nworld,
+        "robot": robot, "integrator": integrator, "dt_ms": f"{dt * 1e3:g}", "nworld": nworld,
         "seconds": f"{seconds:g}", "drift_m": f"{np.abs(pos - pos[0]).max():.3g}",
         "force_change": f"{np.abs(np.diff(fz, axis=0)).max() / weight:.3g}",
         "s_per_step": f"{elapsed / n:.3g}",
@@ -195,17 +240,19 @@ def stand(device, integrator: str, dt: float, nworld: int, seconds: float) -> di
 
 
 def standing(args, device) -> list[dict]:
-    """--standing: stand() at dt 1 and 2 ms under Euler and implicitfast; prints and writes
-    benchmarks/results/gpu_standing.csv (or --out)."""
+    """--standing: stand() of the hexapod and the quadruped at dt 1 and 2 ms under Euler and
+    implicitfast; prints and writes benchmarks/results/gpu_standing.csv (or --out)."""
     nworld = (args.nworld or [4])[0]
     rows = []
-    print(f"{'integrator':12s} {'dt ms':>5s} {'drift m':>9s} {'dF/weight':>9s} {'s/step':>8s}")
-    for integrator in ("Euler", "implicitfast"):
-        for dt in (0.001, 0.002):
-            r = stand(device, integrator, dt, nworld, args.seconds)
-            rows.append(r)
-            print(f"{integrator:12s} {r['dt_ms']:>5s} {r['drift_m']:>9s} "
-                  f"{r['force_change']:>9s} {r['s_per_step']:>8s}", flush=True)  # fmt: skip
+    print(f"{'robot':10s} {'integrator':12s} {'dt ms':>5s} {'drift m':>9s} {'dF/weight':>9s} "
+          f"{'s/step':>8s}")  # fmt: skip
+    for robot in ("hexapod", "quadruped"):
+        for integrator in ("Euler", "implicitfast"):
+            for dt in (0.001, 0.002):
+                r = stand(device, robot, integrator, dt, nworld, args.seconds)
+                rows.append(r)
+                print(f"{robot:10s} {integrator:12s} {r['dt_ms']:>5s} {r['drift_m']:>9s} "
+                      f"{r['force_change']:>9s} {r['s_per_step']:>8s}", flush=True)  # fmt: skip
     out = args.out if args.out != OUT / "gpu.csv" else OUT / "gpu_standing.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w", newline="") as f:

@@ -48,11 +48,19 @@ ATOL_QPOS = 1e-8
 #: and slipping, which amplifies float32 differences as the pure model's chatter does (measured
 #: 8.8e-5 m and 5.5e-3 rad; about 2x that): it ends in the same stance, not on the same path.
 FOLLOW = {"hexapod": (1e-8, 1e-5), "quadruped": (2e-4, 1e-2)}
-_SPEC = importlib.util.spec_from_file_location(
-    "energy_benchmark", Path(__file__).resolve().parents[1] / "benchmarks" / "energy.py"
-)
-energy = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(energy)
+
+
+def _benchmark(name: str):
+    """A script of benchmarks/ as a module."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"{name}_benchmark", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+energy = _benchmark("energy")
+gpu_benchmark = _benchmark("gpu")
 
 
 def sphere(low_speed: str, integrator: str = "Euler"):
@@ -116,7 +124,7 @@ def test_free_body_decisions_and_wrenches_are_the_engines_on_the_same_states():
     assert np.all(np.abs(got[treated] - pure[treated]).max(axis=(1, 2)) > 0.0)
 
 
-@pytest.mark.parametrize("integrator", ["Euler", "implicitfast"])
+@pytest.mark.parametrize("integrator", ["Euler", "implicitfast", "implicit"])
 def test_a_resting_sphere_stands_still_and_follows_the_engine(integrator):
     """Spheres released at rest at two depths and one dropped in: 400 steps of 1 ms; over the
     last 200 the resting ones stay put and their force stays constant, where the pure model
@@ -208,41 +216,9 @@ def test_thrown_bodies_gain_no_energy_from_the_medium(case):
     assert worst <= 1.0, worst
 
 
-_LEG = """
-  <body name="thigh_{n}" pos="{x} {y} 0">
-    <joint name="hip_{n}" axis="0 1 0" range="-1 1" armature="0.0005" damping="0.01"/>
-    <geom type="capsule" fromto="0 0 0 0 0 -0.06" size="0.008" mass="0.05"/>
-    <body name="shin_{n}" pos="0 0 -0.06">
-      <joint name="knee_{n}" axis="0 1 0" range="-1.5 1.5" armature="0.0005" damping="0.01"/>
-      <geom type="capsule" fromto="0 0 0 0 0 -0.06" size="0.006" mass="0.03"/>
-      <geom name="foot_{n}" type="sphere" pos="0 0 -0.06" size="0.012" mass="0.02"/>
-    </body>
-  </body>"""
-_LEGS = (("LF", 0.08, 0.05), ("RF", 0.08, -0.05), ("LH", -0.08, 0.05), ("RH", -0.08, -0.05))
-#: A quadruped of two-joint legs (hip and knee servos) standing on four ball feet, 1.4 kg.
-QUADRUPED = f"""<mujoco model="quadruped_sand">
-  <option timestep="0.001" integrator="Euler"><flag contact="disable"/></option>
-  <custom>
-    <text name="mjrft:material" data="glass_beads"/>
-    <tuple name="mjrft:intruders">{
-    "".join(f'<element objtype="geom" objname="foot_{n}" prm="200"/>' for n, _, _ in _LEGS)
-}</tuple>
-  </custom>
-  <worldbody>
-    <body name="torso" pos="0 0 0.125">
-      <freejoint/>
-      <geom type="box" size="0.1 0.05 0.02" mass="1.0"/>
-      {"".join(_LEG.format(n=n, x=x, y=y) for n, x, y in _LEGS)}
-    </body>
-  </worldbody>
-  <actuator>{
-    "".join(
-        f'<position joint="{j}_{n}" kp="8" kv="0.05"/>'
-        for n, _, _ in _LEGS
-        for j in ("hip", "knee")
-    )
-}</actuator>
-</mujoco>"""
+#: A quadruped of two-joint legs (hip and knee servos) standing on four ball feet, 1.4 kg
+#: (benchmarks/gpu.py's, which stands it for 5 s).
+QUADRUPED = gpu_benchmark.QUADRUPED
 
 
 def settled(robot: str, integrator: str):
