@@ -577,6 +577,66 @@ def predictor_valid(mc: Mech, w: int, time: f64, dt: f64, same_time: bool) -> bo
     return ok
 
 
+@wp.func
+def read_loads(mc: Mech, ld: Loads, w: int):
+    """The first pass at a new time reads the loads of the previous pass: its qacc, the field's
+    generalized force then, its holds and the actuators' forces (engine TreatMechanisms 1)."""
+    nv = mc.nv
+    for i in range(nv):
+        mc.qin[w, i] = f64(ld.qacc[w, i])
+        mc.qin[w, nv + i] = mc.tau[w, i]
+    for i in range(6 * mc.nk):
+        mc.in_prev[w, i] = mc.prev[w, i]
+    for a in range(mc.nu):
+        mc.in_force[w, a] = f64(ld.actuator_force[w, a])
+    for k in range(mc.nk):
+        mc.in_held[w, k] = mc.held[w, k]
+
+
+@wp.func
+def gather(el: Elements, medium: Medium, cull: wp.array2d(dtype=int), kin: Kin, mc: Mech,
+           tbody_bodyid: wp.array(dtype=int), w: int) -> int:  # fmt: skip
+    """The tagged mechanism bodies in the medium (a geom in play with an element below the
+    surface) into mc.rows, in order; returns their number (engine Gather)."""
+    n = int(0)
+    for k in range(mc.nk):
+        if mc.tbody_mech[k] != 0:
+            play = int(0)
+            g0 = el.tbody_geomadr[k]
+            for g in range(g0, g0 + el.tbody_geomnum[k]):
+                if cull[w, g] == 0:
+                    play = 1
+            if play != 0:
+                if submerged(el, medium, cull, kin, w, k, tbody_bodyid[k]):
+                    mc.rows[w, n] = k
+                    n += 1
+    return n
+
+
+@wp.func
+def record(mc: Mech, force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
+           code: wp.array2d(dtype=int), w: int, n: int):  # fmt: skip
+    """The treated wrenches into force, torque; what the field applies (tau) and the holds
+    (held, prev) recorded for the next pass."""
+    nv = mc.nv
+    for i in range(nv):
+        mc.tau[w, i] = _Z
+    for a in range(n):
+        for r in range(6):
+            for j in range(nv):
+                mc.tau[w, j] = mc.tau[w, j] + mc.jac[w, nv * (6 * a + r) + j] * mc.out[w, 6 * a + r]
+    for k in range(mc.nk):
+        mc.held[w, k] = 0
+    for a in range(n):
+        k = mc.rows[w, a]
+        force[w, k] = vec3d(mc.out[w, 6 * a], mc.out[w, 6 * a + 1], mc.out[w, 6 * a + 2])
+        torque[w, k] = vec3d(mc.out[w, 6 * a + 3], mc.out[w, 6 * a + 4], mc.out[w, 6 * a + 5])
+        if code[w, k] == ls.STICK:
+            mc.held[w, k] = 1
+            for r in range(6):
+                mc.prev[w, 6 * k + r] = mc.out[w, 6 * a + r]
+
+
 @wp.kernel
 def mechanism_kernel(
     # Model
@@ -604,27 +664,8 @@ def mechanism_kernel(
     same_time = mc.time[w, 1] == _ONE and time == mc.time[w, 0]
     valid = predictor_valid(mc, w, time, dt, same_time)
     if not same_time:
-        for i in range(nv):
-            mc.qin[w, i] = f64(ld.qacc[w, i])
-            mc.qin[w, nv + i] = mc.tau[w, i]
-        for i in range(6 * nk):
-            mc.in_prev[w, i] = mc.prev[w, i]
-        for a in range(mc.nu):
-            mc.in_force[w, a] = f64(ld.actuator_force[w, a])
-        for k in range(nk):
-            mc.in_held[w, k] = mc.held[w, k]
-    n = int(0)
-    for k in range(nk):
-        if mc.tbody_mech[k] != 0:
-            play = int(0)
-            g0 = el.tbody_geomadr[k]
-            for g in range(g0, g0 + el.tbody_geomnum[k]):
-                if cull[w, g] == 0:
-                    play = 1
-            if play != 0:
-                if submerged(el, medium, cull, kin, w, k, tbody_bodyid[k]):
-                    mc.rows[w, n] = k
-                    n += 1
+        read_loads(mc, ld, w)
+    n = gather(el, medium, cull, kin, mc, tbody_bodyid, w)
     ok = n > 0 and nv > 0 and dt > _Z
     if ok:
         ok = setup(mc, kin, ld, tbody_bodyid, tbody_rootid, w, n, dt)
@@ -664,20 +705,4 @@ def mechanism_kernel(
         code[w, mc.rows[w, a]] = ls.SLIP
         for r in range(6):
             mc.out[w, 6 * a + r] = slip[r]
-    # What the field applies, and the records.
-    for i in range(nv):
-        mc.tau[w, i] = _Z
-    for a in range(n):
-        for r in range(6):
-            for j in range(nv):
-                mc.tau[w, j] = mc.tau[w, j] + mc.jac[w, nv * (6 * a + r) + j] * mc.out[w, 6 * a + r]
-    for k in range(nk):
-        mc.held[w, k] = 0
-    for a in range(n):
-        k = mc.rows[w, a]
-        force[w, k] = vec3d(mc.out[w, 6 * a], mc.out[w, 6 * a + 1], mc.out[w, 6 * a + 2])
-        torque[w, k] = vec3d(mc.out[w, 6 * a + 3], mc.out[w, 6 * a + 4], mc.out[w, 6 * a + 5])
-        if code[w, k] == ls.STICK:
-            mc.held[w, k] = 1
-            for r in range(6):
-                mc.prev[w, 6 * k + r] = mc.out[w, 6 * a + r]
+    record(mc, force, torque, code, w, n)

@@ -232,41 +232,46 @@ def relax(sf: Surface, gr: Ground, w: int, bx: int, seen: int) -> bool:
         fi = gr.floor[w, i]
         if not (fi >= hi + surface.SOIL_CONTACT):
             continue
-        for q in range(8):  # right, left, up, down, the diagonals (engine kNeighbours)
-            a = int(0)
-            b = int(0)
-            kind = int(2)
-            if q == 0:
-                b = 1
-                kind = 0
-            elif q == 1:
-                b = -1
-                kind = 0
-            elif q == 2:
-                a = 1
-                kind = 1
-            elif q == 3:
-                a = -1
-                kind = 1
-            elif q == 4:
-                a = 1
-                b = 1
-            elif q == 5:
-                a = -1
-                b = -1
-            elif q == 6:
-                a = 1
-                b = -1
-            else:
-                a = -1
-                b = 1
+        for q in range(8):
+            a, b, kind = neighbour(q)
             tail, count = settle_into(sf, gr, w, limit(sf, kind), tail, count, seen, i, r, c,
                                       hi, fi, a, b)  # fmt: skip
             hi = height_at(sf, w, r, c)
         visits += 8
     if count == 0:
         return True
-    lo_r = f64(nrow)
+    leftover(sf, gr, w, bx, tail, count)
+    return False
+
+
+@wp.func
+def neighbour(q: int):
+    """Neighbour q of a vertex (engine kNeighbours: right, left, up, down, then the diagonals):
+    (row step, column step, limit kind: 0 along x, 1 along y, 2 diagonal)."""
+    if q == 0:
+        return 0, 1, 0
+    if q == 1:
+        return 0, -1, 0
+    if q == 2:
+        return 1, 0, 1
+    if q == 3:
+        return -1, 0, 1
+    if q == 4:
+        return 1, 1, 2
+    if q == 5:
+        return -1, -1, 2
+    if q == 6:
+        return 1, -1, 2
+    return -1, 1, 2
+
+
+@wp.func
+def leftover(sf: Surface, gr: Ground, w: int, bx: int, tail: int, count: int):
+    """The vertices still queued leave the queue; box bx becomes their bounding box (what the
+    next update relaxes) and the update counts as unrelaxed."""
+    ncol = sf.ncol
+    n = ncol * sf.nrow
+    lo_r = f64(sf.nrow)
     hi_r = -f64(1.0)
     lo_c = f64(ncol)
     hi_c = -f64(1.0)
@@ -282,7 +287,6 @@ def relax(sf: Surface, gr: Ground, w: int, bx: int, seen: int) -> bool:
     gr.box[w, bx + 2] = lo_c
     gr.box[w, bx + 3] = hi_c
     gr.stats[w, UNRELAXED] = gr.stats[w, UNRELAXED] + f64(1.0)
-    return False
 
 
 @wp.func
@@ -490,34 +494,12 @@ def finish(sf: Surface, gr: Ground, w: int, bx: int, time: f64):
     sf.soil[w, SOIL_TIME] = time
 
 
-@wp.kernel
-def deform_kernel(
-    # Model
-    el: Elements, medium: Medium, tbody_bodyid: wp.array(dtype=int),
-    tbody_rootid: wp.array(dtype=int), timestep: wp.array(dtype=float),
-    # Data in
-    time: wp.array(dtype=float), xpos: wp.array2d(dtype=wp.vec3),
-    xmat: wp.array2d(dtype=wp.mat33), cvel: wp.array2d(dtype=wp.spatial_vector),
-    subtree_com: wp.array2d(dtype=wp.vec3), geom_xpos: wp.array2d(dtype=wp.vec3),
-    # Data in and out
-    gr: Ground,
-):  # fmt: skip
-    """World w's ground follows its intruders' configuration if due (engine deform::Due and
-    Update); gr.status[w] gets -1 or the tagged body that reaches below the bottom."""
-    w = wp.tid()
-    sf = medium.surface
-    sf.w = w
-    gr.status[w] = -1
-    now = f64(time[w])
-    last = sf.soil[w, SOIL_TIME]
-    due = sf.soil[w, SOIL_DONE] == _Z or now < last
-    if not due:
-        if sf.every <= f64(1.0):
-            due = last != now
-        else:
-            due = now - last > (sf.every - f64(0.5)) * f64(timestep[w % timestep.shape[0]])
-    if not due:
-        return
+@wp.func
+def footprints(el: Elements, medium: Medium, sf: Surface, gr: Ground, w: int,
+               tbody_bodyid: wp.array(dtype=int), xpos: wp.array2d(dtype=wp.vec3),
+               xmat: wp.array2d(dtype=wp.mat33), geom_xpos: wp.array2d(dtype=wp.vec3)):  # fmt: skip
+    """Rasterises every tagged body's geoms that may touch the medium (not culled, engine
+    Culled); box k is body k's footprint, box nk their union (engine Footprints)."""
     nk = gr.nk
     top = surface.ceiling(sf)
     allbox = 4 * nk
@@ -547,6 +529,43 @@ def deform_kernel(
             gr.stats[w, RASTERISED] = gr.stats[w, RASTERISED] + f64(nr)
         union(gr, w, allbox, gr.box[w, kb], gr.box[w, kb + 1], gr.box[w, kb + 2],
               gr.box[w, kb + 3])  # fmt: skip
+
+
+@wp.func
+def due(sf: Surface, w: int, now: f64, dt: f64) -> bool:
+    """The ground has not yet followed the configuration at time now [s] (engine Due)."""
+    last = sf.soil[w, SOIL_TIME]
+    if sf.soil[w, SOIL_DONE] == _Z or now < last:
+        return True
+    if sf.every <= f64(1.0):
+        return last != now
+    return now - last > (sf.every - f64(0.5)) * dt
+
+
+@wp.kernel
+def deform_kernel(
+    # Model
+    el: Elements, medium: Medium, tbody_bodyid: wp.array(dtype=int),
+    tbody_rootid: wp.array(dtype=int), timestep: wp.array(dtype=float),
+    # Data in
+    time: wp.array(dtype=float), xpos: wp.array2d(dtype=wp.vec3),
+    xmat: wp.array2d(dtype=wp.mat33), cvel: wp.array2d(dtype=wp.spatial_vector),
+    subtree_com: wp.array2d(dtype=wp.vec3), geom_xpos: wp.array2d(dtype=wp.vec3),
+    # Data in and out
+    gr: Ground,
+):  # fmt: skip
+    """World w's ground follows its intruders' configuration if due (engine deform::Due and
+    Update); gr.status[w] gets -1 or the tagged body that reaches below the bottom."""
+    w = wp.tid()
+    sf = medium.surface
+    sf.w = w
+    gr.status[w] = -1
+    now = f64(time[w])
+    if not due(sf, w, now, f64(timestep[w % timestep.shape[0]])):
+        return
+    nk = gr.nk
+    allbox = 4 * nk
+    footprints(el, medium, sf, gr, w, tbody_bodyid, xpos, xmat, geom_xpos)
     bad = int(-1)
     for k in range(nk):  # excavation and deposition, intruder by intruder
         kb = 4 * k
