@@ -1,13 +1,17 @@
 """``WarpField``: the granular field's static tables on a Warp device and its per-pass kernels.
 
-Each pass, for the ``nworld`` worlds of an ``mjw.Data``: ``cull_kernel`` (nworld x tagged geoms)
-marks the geoms whose bounding sphere is above the surface or outside the region, as the
-engine's ``Culled`` (engine/evaluate.cc); ``element_kernel`` (nworld x elements) evaluates every
-element of a geom in play at its quadrature point (``mjrft.warp.quadrature``) and adds its force
-and torque to its body's wrench; ``apply_kernel`` (nworld x tagged bodies) writes user part + RFT
-wrench into ``xfrc_applied`` (the engine's per-component rule for the user's part,
-docs/field.md). The element law runs in float64 whatever MuJoCo Warp's own precision (float32):
-poses and velocities are widened on load.
+Each pass, for the ``nworld`` worlds of an ``mjw.Data``: with a deforming ground,
+``soil.deform_kernel`` (nworld) moves each world's ground to its intruders first;
+``cull_kernel`` (nworld x tagged geoms) marks the geoms whose bounding sphere is above the
+surface or outside the region, as the engine's ``Culled`` (engine/evaluate.cc);
+``element_kernel`` (nworld x elements) evaluates every element of a geom in play at its
+quadrature point (``mjrft.warp.quadrature``) and adds its force and torque to its body's wrench;
+``user_kernel`` (nworld x tagged bodies) reads the user part of ``xfrc_applied`` (the engine's
+per-component rule, docs/field.md); the low-speed treatment replaces the wrenches of bodies near
+rest (``lowspeed.treat_kernel``, nworld x tagged bodies; ``mechanism.mechanism_kernel``,
+nworld); ``write_kernel`` writes user part + RFT wrench into ``xfrc_applied``. Everything runs
+in float64 whatever MuJoCo Warp's own precision (float32): poses and velocities are widened on
+load.
 
 Frames: element tables in the body frame; everything per world in the world frame; wrenches
 are force [N] then torque [N m] about the body's CoM (``xipos``), ``xfrc_applied``'s layout.
@@ -314,8 +318,8 @@ class WarpField:
         costs nworld x elements x 24 bytes of device memory.
     Raises:
       UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
-      model, callable materials, the deforming ground. SceneError as ``mjrft.load_model``.
-      ValueError for a model that carries the engine plugin.
+      model, callable materials. SceneError as ``mjrft.load_model``. ValueError for a model
+      that carries the engine plugin; at ``install`` or ``treat``, for the treatment under RK4.
 
     A field serves the MuJoCo Warp model and data of its own model only: ``install`` refuses an
     ``mjw.Model`` whose sizes, body tree, joint or geom types, geom bodies or intruding geoms'
@@ -327,7 +331,8 @@ class WarpField:
     culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine),
     and so is the low-speed treatment: of free bodies (``low_speed`` "stick" or "free";
     mjrft.warp.lowspeed) and of bodies in mechanisms ("stick"; mjrft.warp.mechanism), under
-    Euler, implicit and implicitfast; "off" is the pure model.
+    Euler, implicit and implicitfast; "off" is the pure model. So is the deforming ground
+    (``mjrft:deform_cell``; mjrft.warp.soil), one height grid with memory per world.
     """
 
     def __init__(
@@ -715,7 +720,8 @@ class WarpField:
         arrays = []  # (array, value)
         if st.ground is not None:
             gr = st.ground
-            arrays += [(st.soil, 0.0), (gr.floor, np.inf), (gr.owner, -1), (gr.box, 0.0)]
+            arrays += [(st.soil, 0.0), (gr.floor, np.inf), (gr.owner, -1), (gr.box, 0.0),
+                       (gr.stats, 0.0)]  # fmt: skip
         if st.mech is not None:
             arrays += [(getattr(st.mech, name), 0) for name in _mech_sizes(1, 1, 1)]
         for arr, value in arrays:
