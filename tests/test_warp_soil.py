@@ -135,3 +135,40 @@ def test_reset_starts_the_ground_over_in_the_worlds_given():
             np.testing.assert_array_equal(arr.numpy()[1], before[1])
         mjw.step(m, d)  # the plate is still down there: world 0 is pressed again
     assert np.abs(field.soil_blocks(d)[0, cs.SOIL_HEAD :]).max() > 1e-3
+
+
+def test_a_pass_neither_copies_to_the_host_nor_allocates(monkeypatch):
+    """What a CUDA graph of mjw.step needs from the field (docs/gpu.md): once prepare(d) ran, a
+    pass with the ground, the mechanism treatment and the free-body treatment only launches
+    kernels. On the CPU device: the pass runs with Warp's host copies and allocations refused."""
+    xml = PLATE.replace(  # the plate's carriage, plus a free ball resting in the ground
+        '<element objtype="geom" objname="foot" prm="300"/>',
+        '<element objtype="geom" objname="foot" prm="300"/>'
+        '<element objtype="geom" objname="ball" prm="100"/>',
+    ).replace(
+        "</body></worldbody>",
+        '</body><body name="ball" pos="0.04 0.04 0"><freejoint/>'
+        '<geom name="ball" size="0.005" contype="0" conaffinity="0"/></body></worldbody>',
+    )
+    plain = mujoco.MjModel.from_xml_string(xml)
+    field = mw.WarpField(plain, device=DEVICE)
+    assert (
+        field.deforms and field.setup.stick_eligible.any() and field.setup.mechanism_eligible.any()
+    )
+    m = mjw.put_model(plain)
+    d = mjw.put_data(plain, mujoco.MjData(plain), nworld=2)
+    d.qvel.assign(np.tile([-0.05, 0.0, 0.0, -0.01, 0.0, 0.0, 0.0], (2, 1)).astype(np.float32))
+    field.prepare(d)
+    mjw.forward(m, d)
+    field.passive(m, d)  # loads the kernel modules
+    mjw.step(m, d)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the pass copied to the host or allocated")
+
+    monkeypatch.setattr(wp.array, "numpy", refused)  # the class: every array's host copy
+    for name in ("zeros", "empty", "full", "clone", "array", "synchronize"):
+        monkeypatch.setattr(wp, name, refused)
+    field.passive(m, d)
+    monkeypatch.undo()
+    assert np.abs(field.wrenches(d)).max() > 0.0
