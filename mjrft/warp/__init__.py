@@ -6,8 +6,10 @@
 plugins, so ``mjm`` is compiled without the engine), keeps them on the Warp device, and each
 forward pass computes, for every world of an ``mjw.Data``, the wrench on every tagged body from
 that world's ``xpos``, ``xmat``, ``cvel`` and ``subtree_com``; it writes them into
-``xfrc_applied`` (user part kept, per component, as the engine does) so load cells see them.
-``field.install()`` makes it MuJoCo Warp's passive callback, so ``mjw.step`` (and a CUDA graph
+``xfrc_applied`` (user part kept, per component, as the engine does) so load cells see them,
+with the engine's low-speed treatment (free bodies, bodies in mechanisms) and, if the scene's
+ground deforms, one deforming height grid per world. ``field.install()`` makes it MuJoCo Warp's
+passive callback, so ``mjw.step`` (and a CUDA graph
 of it) includes the field. What it supports and how it differs from the CPU engine: docs/gpu.md.
 
 Optional: needs ``pip install "mjrft[gpu]"`` (warp-lang, mujoco-warp). Runs on Warp's CPU

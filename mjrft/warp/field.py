@@ -1,13 +1,17 @@
 """``WarpField``: the granular field's static tables on a Warp device and its per-pass kernels.
 
-Each pass, for the ``nworld`` worlds of an ``mjw.Data``: ``cull_kernel`` (nworld x tagged geoms)
-marks the geoms whose bounding sphere is above the surface or outside the region, as the
-engine's ``Culled`` (engine/evaluate.cc); ``element_kernel`` (nworld x elements) evaluates every
-element of a geom in play at its quadrature point (``mjrft.warp.quadrature``) and adds its force
-and torque to its body's wrench; ``apply_kernel`` (nworld x tagged bodies) writes user part + RFT
-wrench into ``xfrc_applied`` (the engine's per-component rule for the user's part,
-docs/field.md). The element law runs in float64 whatever MuJoCo Warp's own precision (float32):
-poses and velocities are widened on load.
+Each pass, for the ``nworld`` worlds of an ``mjw.Data``: with a deforming ground,
+``soil.deform_kernel`` (nworld) moves each world's ground to its intruders first;
+``cull_kernel`` (nworld x tagged geoms) marks the geoms whose bounding sphere is above the
+surface or outside the region, as the engine's ``Culled`` (engine/evaluate.cc);
+``element_kernel`` (nworld x elements) evaluates every element of a geom in play at its
+quadrature point (``mjrft.warp.quadrature``) and adds its force and torque to its body's wrench;
+``user_kernel`` (nworld x tagged bodies) reads the user part of ``xfrc_applied`` (the engine's
+per-component rule, docs/field.md); the low-speed treatment replaces the wrenches of bodies near
+rest (``lowspeed.treat_kernel``, nworld x tagged bodies; ``mechanism.mechanism_kernel``,
+nworld); ``write_kernel`` writes user part + RFT wrench into ``xfrc_applied``. Everything runs
+in float64 whatever MuJoCo Warp's own precision (float32): poses and velocities are widened on
+load.
 
 Frames: element tables in the body frame; everything per world in the world frame; wrenches
 are force [N] then torque [N m] about the body's CoM (``xipos``), ``xfrc_applied``'s layout.
@@ -29,8 +33,10 @@ from mjrft.field import plugin
 from mjrft.field.model import FieldSetup
 from mjrft.field.options import SceneOptions
 from mjrft.field.scene import Scene, SceneError, scene_from_model
-from mjrft.warp import surface
+from mjrft.warp import lowspeed as ls
+from mjrft.warp import mechanism, soil, surface
 from mjrft.warp.law import element_force, f64, forces_kernel, vec3d
+from mjrft.warp.lowspeed import Elements, Medium, widen
 from mjrft.warp.quadrature import quadrature_point
 from mjrft.warp.surface import Surface
 
@@ -40,22 +46,6 @@ class UnsupportedScene(SceneError):
 
 
 # --------------------------------------------------------------------------------- kernels
-@wp.struct
-class Medium:
-    """The medium and its extent: combined coefficients co (18,), alpha_y, zeta [N/m^3], the
-    dynamic term's lambda rho_c [kg/m^3] (0: off), the free surface and the region box [m]
-    (used if use_region); world frame."""
-
-    co: wp.array(dtype=f64)
-    ay: f64
-    zeta: f64
-    lam_rho: f64
-    surface: Surface
-    use_region: int
-    region_lo: vec3d
-    region_hi: vec3d
-
-
 @wp.kernel
 def cull_kernel(
     # Model
@@ -73,18 +63,15 @@ def cull_kernel(
     if r > f64(0.0):
         p = geom_xpos[w, tgeom_geomid[g]]
         c = vec3d(f64(p[0]), f64(p[1]), f64(p[2]))
-        if c[2] - r >= surface.highest_near(medium.surface, c[0], c[1], r):
+        sf = medium.surface
+        sf.w = w
+        if c[2] - r >= surface.highest_near(sf, c[0], c[1], r):
             out = 1
         if medium.use_region != 0:
             for i in range(3):
                 if c[i] + r < medium.region_lo[i] or c[i] - r > medium.region_hi[i]:
                     out = 1
     cull[w, g] = out
-
-
-@wp.func
-def widen(v: wp.vec3) -> vec3d:
-    return vec3d(f64(v[0]), f64(v[1]), f64(v[2]))
 
 
 @wp.kernel
@@ -108,6 +95,8 @@ def element_kernel(
     adds)."""
     w, i = wp.tid()
     g = elem_tgeom[i]
+    sf = medium.surface
+    sf.w = w
     f = vec3d(f64(0.0), f64(0.0), f64(0.0))
     if cull[w, g] == 0:
         k = tgeom_tbody[g]
@@ -125,7 +114,7 @@ def element_kernel(
         q = quadrature_point(
             elem_pos[i], elem_normal[i], elem_area[i], elem_reach[i], elem_patch, i, rot,
             widen(xpos[w, b]), omega, v_ref, widen(subtree_com[w, tbody_rootid[k]]),
-            medium.surface, medium.use_region, medium.region_lo, medium.region_hi,
+            sf, medium.use_region, medium.region_lo, medium.region_hi,
         )  # fmt: skip
         if q.w > f64(0.0):
             f = element_force(q.n, q.v, q.w, q.a, medium.co, medium.ay, medium.zeta, medium.lam_rho)
@@ -137,40 +126,87 @@ def element_kernel(
 
 
 @wp.kernel
-def apply_kernel(
+def user_kernel(
+    # Model
+    tbody_bodyid: wp.array(dtype=int),
+    # Data in
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+    # Data in and out
+    user: wp.array2d(dtype=wp.spatial_vector),
+):  # fmt: skip
+    """The user part of tagged body k's xfrc_applied row: a component that no longer holds what
+    the field wrote there was assigned by the user and becomes the user part (the engine's
+    rule, docs/field.md)."""
+    w, k = wp.tid()
+    cur = xfrc_applied[w, tbody_bodyid[k]]
+    old = written[w, k]
+    u = user[w, k]
+    for c in range(6):
+        if cur[c] != old[c]:
+            u[c] = cur[c]
+    user[w, k] = u
+
+
+@wp.kernel
+def restore_kernel(
+    # Model
+    tbody_bodyid: wp.array(dtype=int),
+    # Data in
+    user: wp.array2d(dtype=wp.spatial_vector),
+    # Data out
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+):  # fmt: skip
+    """xfrc_applied row of tagged body k = its user part (the field's wrench taken out)."""
+    w, k = wp.tid()
+    written[w, k] = user[w, k]
+    xfrc_applied[w, tbody_bodyid[k]] = user[w, k]
+
+
+@wp.kernel
+def fill_rows_kernel(
+    mask: wp.array(dtype=int), value: f64,
+    # Data out
+    arr: wp.array2d(dtype=f64),
+):  # fmt: skip
+    """arr[w, i] = value in the worlds w where mask[w] != 0."""
+    w, i = wp.tid()
+    if mask[w] != 0:
+        arr[w, i] = value
+
+
+@wp.kernel
+def fill_int_rows_kernel(
+    mask: wp.array(dtype=int), value: int,
+    # Data out
+    arr: wp.array2d(dtype=int),
+):  # fmt: skip
+    """arr[w, i] = value in the worlds w where mask[w] != 0."""
+    w, i = wp.tid()
+    if mask[w] != 0:
+        arr[w, i] = value
+
+
+@wp.kernel
+def write_kernel(
     # Model
     tbody_bodyid: wp.array(dtype=int),
     # Data in
     force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
-    # Data in and out
-    user: wp.array2d(dtype=wp.spatial_vector), written: wp.array2d(dtype=wp.spatial_vector),
-    xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
+    user: wp.array2d(dtype=wp.spatial_vector),
+    # Data out
+    written: wp.array2d(dtype=wp.spatial_vector), xfrc_applied: wp.array2d(dtype=wp.spatial_vector),
 ):  # fmt: skip
-    """xfrc_applied row of tagged body k = user part + RFT wrench; a component that no longer
-    holds what was written there was assigned by the user and becomes the user part (the
-    engine's rule, docs/field.md)."""
+    """xfrc_applied row of tagged body k = user part + RFT wrench, remembered as written."""
     w, k = wp.tid()
-    b = tbody_bodyid[k]
-    cur = xfrc_applied[w, b]
-    old = written[w, k]
     u = user[w, k]
     f = force[w, k]
     t = torque[w, k]
     out = wp.spatial_vector()
-    for c in range(6):
-        uc = u[c]
-        if cur[c] != old[c]:
-            uc = cur[c]
-        u[c] = uc
-        rft = f64(0.0)
-        if c < 3:
-            rft = f[c]
-        else:
-            rft = t[c - 3]
-        out[c] = uc + float(rft)
-    user[w, k] = u
+    for c in range(3):
+        out[c] = u[c] + float(f[c])
+        out[3 + c] = u[3 + c] + float(t[c])
     written[w, k] = out
-    xfrc_applied[w, b] = out
+    xfrc_applied[w, tbody_bodyid[k]] = out
 
 
 # ------------------------------------------------------------------------------ the field
@@ -195,11 +231,27 @@ def _supported(scene: Scene) -> None:
             f"mjrft.warp: {what} ({m.name!r}) is not supported yet; the Warp field evaluates "
             "Fourier-form media under the treers2021 model (a preset or mjrft:coefficients)"
         )
-    if scene.surface.kind == core_surface.SOIL:
-        raise UnsupportedScene(
-            "mjrft.warp: the deforming ground (mjrft:deform_cell) is not supported yet; the Warp "
-            "field has fixed surfaces: flat, tilted (mjrft:surface_slope) or a height field "
-            "(mjrft:surface_hfield)"
+
+
+def _mech_sizes(nv: int, nk: int, nu: int) -> dict[str, int]:
+    """Per-world sizes of the mechanism treatment's state and scratch (mechanism.Mech)."""
+    return {
+        "time": 3, "qin": 2 * nv, "tau": nv, "prev": 6 * nk, "in_prev": 6 * nk, "held": nk,
+        "in_held": nk, "in_force": nu, "key": 19 * nk, "rcache": 6 * nk, "mm": nv * nv,
+        "lo": nv * nv, "jac": 6 * nk * nv, "x": 6 * nk * nv, "a": 36 * nk * nk,
+        "s": 36 * nk * nk, "u": nv, "g": nv, "rhs": 6 * nk, "out": 6 * nk, "rows": nk,
+    }  # fmt: skip
+
+
+def _check_integrator(m) -> None:
+    """Raise ValueError if the mjw.Model m integrates with RK4, whose stages the treatment
+    cannot recognise on MuJoCo Warp (its stages run at the step's start time)."""
+    if int(m.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4):
+        raise ValueError(
+            "mjrft.warp: the low-speed treatment is not supported under the RK4 integrator on "
+            "MuJoCo Warp (its stage passes carry no stage time, so the engine's stage rule "
+            "cannot hold a stuck body's wrench over the step); use Euler, implicit or "
+            "implicitfast, or WarpField(..., low_speed='off')"
         )
 
 
@@ -243,6 +295,11 @@ class _Worlds:
     user: wp.array  # (nworld, ntbody) spatial_vector: the user part of xfrc_applied's rows
     written: wp.array  # (nworld, ntbody) spatial_vector: what the field last wrote there
     elem_force: wp.array  # (nworld, nelem) vec3d [N], or (1, 1) if not stored
+    decision: wp.array  # (nworld, ntbody) int: the low-speed treatment's (lowspeed.PURE...)
+    mech: object  # mechanism.Mech: the mechanism treatment's per-world state, or None
+    medium: Medium  # the medium, its surface reading these worlds' soil blocks if it deforms
+    ground: object  # soil.Ground: the deforming ground's per-world state and work, or None
+    soil: wp.array  # (nworld, block) the deforming ground's blocks (engine surface.h), or None
     owner: weakref.ref  # the mjw.Data these belong to
 
 
@@ -253,15 +310,16 @@ class WarpField:
       model: the compiled MjModel whose ``<custom>`` describes the scene (``mjrft:`` section),
         without the engine plugin: the model ``mjw.put_model`` takes (MuJoCo Warp runs no C
         plugins), e.g. ``mujoco.MjModel.from_xml_path``, not ``mjrft.load_model``.
-      material, n_triangles, tolerance, dynamic: SceneOptions on top of the MJCF's, as
-        ``mjrft.load_model`` takes them.
+      material, n_triangles, tolerance, dynamic, low_speed, stick_reach: SceneOptions on top of
+        the MJCF's, as ``mjrft.load_model`` takes them (low_speed: the MJCF's ``mjrft:low_speed``,
+        default "stick", as the engine's).
       device: the Warp device (default: Warp's default device).
       store_element_forces: keep each element's force per world (``element_forces_of``);
         costs nworld x elements x 24 bytes of device memory.
     Raises:
       UnsupportedScene (a SceneError) naming a feature the Warp field lacks: the agarwal3d
-      model, callable materials, the deforming ground. SceneError as ``mjrft.load_model``.
-      ValueError for a model that carries the engine plugin.
+      model, callable materials. SceneError as ``mjrft.load_model``. ValueError for a model
+      that carries the engine plugin; at ``install`` or ``treat``, for the treatment under RK4.
 
     A field serves the MuJoCo Warp model and data of its own model only: ``install`` refuses an
     ``mjw.Model`` whose sizes, body tree, joint or geom types, geom bodies or intruding geoms'
@@ -270,10 +328,11 @@ class WarpField:
     naming the two.
 
     The element tables are the engine's (``mjrft.field.plugin.setup``: the same meshing,
-    culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine).
-    The Warp field has no low-speed treatment (the engine's "stick" and mechanism treatments):
-    it is the pure model, as the engine under ``low_speed="off"``, and it evaluates elements
-    with the engine's quadrature (mjrft.warp.quadrature).
+    culling bounds, material, surface and region as ``mjrft.load_model`` gives the CPU engine),
+    and so is the low-speed treatment: of free bodies (``low_speed`` "stick" or "free";
+    mjrft.warp.lowspeed) and of bodies in mechanisms ("stick"; mjrft.warp.mechanism), under
+    Euler, implicit and implicitfast; "off" is the pure model. So is the deforming ground
+    (``mjrft:deform_cell``; mjrft.warp.soil), one height grid with memory per world.
     """
 
     def __init__(
@@ -284,13 +343,15 @@ class WarpField:
         n_triangles: int | None = None,
         tolerance: float | None = None,
         dynamic: float | tuple[float, float] | None = None,
+        low_speed: str | None = None,
+        stick_reach: float | None = None,
         device: str | None = None,
         store_element_forces: bool = False,
     ) -> None:
         _check_plain(model)
         options = SceneOptions(
-            material=material, n_triangles=n_triangles, tolerance=tolerance, low_speed="off",
-            dynamic=dynamic,
+            material=material, n_triangles=n_triangles, tolerance=tolerance, low_speed=low_speed,
+            stick_reach=stick_reach, dynamic=dynamic,
         )  # fmt: skip
         # Named before plugin.setup, which refuses some of these (callable media) in the
         # engine's terms.
@@ -335,7 +396,54 @@ class WarpField:
         self._medium.use_region = int(fm["use_region"])
         self._medium.region_lo = vec3d(*region[0])
         self._medium.region_hi = vec3d(*region[1])
+        self._elements = Elements()
+        for name in ("pos", "normal", "area", "reach", "patch"):
+            setattr(self._elements, name, getattr(self, f"_elem_{name}"))
+        for name in ("tgeom_elemadr", "tgeom_elemnum", "tbody_geomadr", "tbody_geomnum"):
+            setattr(self._elements, name, arr(np.asarray(fm[name], dtype=np.int32), int))
+        self._elements.tgeom_geomid = self._tgeom_geomid
+        self._elements.tgeom_rbound = self._tgeom_rbound
+        #: The low-speed treatment: "stick", "free" or "off" (the scene's, SceneOptions).
+        self.low_speed = setup.scene.low_speed.mode
+        self._treat = arr(np.asarray(fm["tbody_treat"], dtype=np.int32), int)
+        self._treats = bool(fm["treat"]) and bool(np.any(fm["tbody_treat"]))
+        self._reach = f64(fm["reach"])
+        mech = np.asarray(fm["tbody_mech"], dtype=bool)
+        self._mechs = bool(fm["treat"]) and bool(mech.any())
+        self._jacobian_step = f64(fm["jacobian_step"])
+        #: The model's timestep [s] (the deforming ground's deform_every > 1 counts steps by it).
+        self._dt = wp.array([float(model.opt.timestep)], dtype=float, device=dev)
         self._worlds: dict[int, _Worlds] = {}
+
+    @property
+    def deforms(self) -> bool:
+        """True if the ground deforms (``mjrft:deform_cell``): a height grid per world."""
+        return self.setup.scene.surface.kind == core_surface.SOIL
+
+    def _ground_state(self, st: _Worlds) -> None:
+        """The deforming ground's per-world arrays of st (blocks as the engine starts them:
+        zeros, floors +inf, no owners), and st.medium reading its soil blocks."""
+        fm, dev, nworld = self.setup.tables, self.device, st.nworld
+        n = int(fm["surface_nrow"]) * int(fm["surface_ncol"])
+        st.soil = wp.zeros((nworld, int(fm["nsoil"])), dtype=f64, device=dev)
+        gr = soil.Ground()
+        gr.floor = wp.array(np.full((nworld, n), np.inf), dtype=f64, device=dev)
+        gr.owner = wp.array(np.full((nworld, n), -1, dtype=np.int32), dtype=int, device=dev)
+        gr.queue = wp.zeros((nworld, n), dtype=int, device=dev)
+        gr.work = wp.zeros((nworld, n), dtype=f64, device=dev)
+        gr.box = wp.zeros((nworld, 4 * (self.ntbody + 3)), dtype=f64, device=dev)
+        gr.stats = wp.zeros((nworld, soil.N_STATS), dtype=f64, device=dev)
+        gr.status = wp.array(np.full(nworld, -1, dtype=np.int32), dtype=int, device=dev)
+        vert = np.asarray(fm["elem_vert"], dtype=np.float64).reshape(-1, 9)
+        gr.elem_vert = wp.array(np.ascontiguousarray(vert), dtype=f64, device=dev)
+        gr.zlo = f64(np.asarray(fm["region"], dtype=np.float64).reshape(2, 3)[0, 2])
+        gr.nk = self.ntbody
+        st.ground = gr
+        med = Medium()
+        for name in Medium.vars:
+            setattr(med, name, getattr(self._medium, name))
+        med.surface = surface.with_soil(self._medium.surface, st.soil)
+        st.medium = med
 
     @property
     def surface(self) -> Surface:
@@ -345,7 +453,13 @@ class WarpField:
     # ------------------------------------------------------------------ per-Data state
     def bytes_per_world(self) -> int:
         """Device memory [bytes] the field's arrays take per world."""
-        per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24)
+        per = self.ntgeom * 4 + self.ntbody * (2 * 24 + 2 * 24 + 4)
+        if self._mechs:
+            per += 8 * sum(_mech_sizes(self.model.nv, self.ntbody, self.model.nu).values())
+        if self.deforms:
+            n = int(self.setup.tables["surface_nrow"]) * int(self.setup.tables["surface_ncol"])
+            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * (self.ntbody + 3)
+            per += 8 * soil.N_STATS + 4
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
     def _worlds_of(self, d) -> _Worlds:
@@ -367,8 +481,15 @@ class WarpField:
             user=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
             written=wp.array(xfrc, dtype=wp.spatial_vector, device=dev),
             elem_force=wp.zeros(ne, dtype=vec3d, device=dev),
+            decision=wp.zeros((nworld, self.ntbody), dtype=int, device=dev),
+            mech=self._mech_state(nworld) if self._mechs else None,
+            medium=self._medium,
+            ground=None,
+            soil=None,
             owner=weakref.ref(d),
         )
+        if self.deforms:
+            self._ground_state(st)
         # Forget the arrays of Data that no longer exist (their ids may be reused).
         self._worlds = {k: v for k, v in self._worlds.items() if v.owner() is not None}
         self._worlds[id(d)] = st
@@ -417,9 +538,17 @@ class WarpField:
         ``wrenches``. Launches two kernels; graph-capturable once ``prepare(d)`` ran."""
         st = self._worlds_of(d)
         dev = self.device
+        if st.ground is not None:  # the ground follows the intruders first (engine step 3)
+            wp.launch(
+                soil.deform_kernel, dim=st.nworld,
+                inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid,
+                        self._dt, d.time, d.xpos, d.xmat, d.cvel, d.subtree_com,
+                        d.geom_xpos],
+                outputs=[st.ground], device=dev,
+            )  # fmt: skip
         wp.launch(
             cull_kernel, dim=(st.nworld, self.ntgeom),
-            inputs=[self._tgeom_geomid, self._tgeom_rbound, self._medium, d.geom_xpos],
+            inputs=[self._tgeom_geomid, self._tgeom_rbound, st.medium, d.geom_xpos],
             outputs=[st.cull], device=dev,
         )  # fmt: skip
         st.force.zero_()
@@ -428,30 +557,127 @@ class WarpField:
             element_kernel, dim=(st.nworld, self.nelem),
             inputs=[self._elem_pos, self._elem_normal, self._elem_area, self._elem_reach,
                     self._elem_patch, self._elem_tgeom, self._tgeom_tbody, self._tbody_bodyid,
-                    self._tbody_rootid, self._medium, int(self.store_element_forces), d.xpos,
+                    self._tbody_rootid, st.medium, int(self.store_element_forces), d.xpos,
                     d.xmat, d.xipos, d.cvel, d.subtree_com, st.cull],
             outputs=[st.force, st.torque, st.elem_force], device=dev,
         )  # fmt: skip
 
-    def apply(self, d) -> None:
-        """Write user part + the last ``compute``'s wrench into d.xfrc_applied's tagged rows."""
+    def take_user_part(self, d) -> None:
+        """Read the user part of d.xfrc_applied's tagged rows (what the user assigned since the
+        field last wrote them, per component)."""
         st = self._worlds_of(d)
         wp.launch(
-            apply_kernel, dim=(st.nworld, self.ntbody),
-            inputs=[self._tbody_bodyid, st.force, st.torque],
-            outputs=[st.user, st.written, d.xfrc_applied], device=self.device,
+            user_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._tbody_bodyid, st.written, d.xfrc_applied], outputs=[st.user],
+            device=self.device,
         )  # fmt: skip
 
+    def treat(self, m, d) -> None:
+        """The low-speed treatment on the last ``compute``'s wrenches: of the free bodies
+        (engine/lowspeed.cc; the user part of xfrc_applied read by the last ``take_user_part`` is
+        the user's wrench) and, under low_speed="stick", of the bodies in mechanisms
+        (engine/mechanism.cc: it reads the previous pass's qacc and records this pass, so call it
+        once per forward pass, as ``passive`` does); nothing under low_speed="off". Needs m, the
+        mjw.Model (mass, inertia, gravity, timestep per world). One launch for each."""
+        st = self._worlds_of(d)
+        if self._mechs:
+            _check_integrator(m)
+            self._treat_mechanisms(m, d, st)
+        if not self._treats:
+            return
+        _check_integrator(m)
+        opt = m.opt
+        gravity_on = int(not (int(opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY)))
+        semi = int(int(opt.integrator) != int(mujoco.mjtIntegrator.mjINT_RK4))
+        wp.launch(
+            ls.treat_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid,
+                    self._treat, self._reach, self._jacobian_step, semi, gravity_on,
+                    opt.timestep, opt.gravity, m.body_mass, m.body_inertia, m.body_gravcomp,
+                    d.xpos, d.xmat, d.xipos, d.ximat, d.cvel, d.subtree_com, st.cull, st.user],
+            outputs=[st.force, st.torque, st.decision], device=self.device,
+        )  # fmt: skip
+
+    def _treat_mechanisms(self, m, d, st: _Worlds) -> None:
+        flags = int(m.opt.disableflags)
+        ld = mechanism.Loads()
+        ld.timestep = m.opt.timestep
+        ld.body_mass = m.body_mass
+        ld.body_inertia = m.body_inertia
+        ld.m_rownnz, ld.m_rowadr, ld.m_colind = m.M_rownnz, m.M_rowadr, m.M_colind
+        ld.gainprm, ld.biasprm = m.actuator_gainprm, m.actuator_biasprm
+        ld.ctrlrange, ld.forcerange = m.actuator_ctrlrange, m.actuator_forcerange
+        ld.actuation_on = int(not flags & int(mujoco.mjtDisableBit.mjDSBL_ACTUATION))
+        ld.clampctrl_on = int(not flags & int(mujoco.mjtDisableBit.mjDSBL_CLAMPCTRL))
+        for name in ("time", "qvel", "qacc", "cdof", "act", "ctrl", "actuator_length",
+                     "actuator_velocity", "actuator_force", "moment_rownnz", "moment_rowadr",
+                     "moment_colind", "actuator_moment"):  # fmt: skip
+            setattr(ld, name, getattr(d, name))
+        ld.mass_matrix = d.M
+        kin = mechanism.Kin()
+        for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
+            setattr(kin, name, getattr(d, name))
+        wp.launch(
+            mechanism.mechanism_kernel, dim=st.nworld,
+            inputs=[self._elements, st.medium, self._tbody_bodyid, self._tbody_rootid, kin,
+                    ld, st.cull],
+            outputs=[st.mech, st.force, st.torque, st.decision], device=self.device,
+        )  # fmt: skip
+
+    def _mech_state(self, nworld: int):
+        """A Mech of zeroed per-world arrays for nworld worlds, with the field's tables."""
+        fm, dev, nv, nk = self.setup.tables, self.device, self.model.nv, self.ntbody
+        mc = mechanism.Mech()
+        mc.nv, mc.nk, mc.nu = nv, nk, self.model.nu
+        mc.reach = f64(fm["reach"])
+
+        def ints(x):
+            return wp.array(np.ascontiguousarray(x, dtype=np.int32), dtype=int, device=dev)
+
+        mc.tbody_mech = ints(fm["tbody_mech"])
+        mc.dofmask = ints(np.asarray(fm["tbody_dofmask"]).reshape(nk, max(nv, 1))[:, :nv])
+        size = np.zeros(nk)
+        for g, k in enumerate(fm["tgeom_tbody"]):
+            size[k] = max(size[k], fm["tgeom_rbound"][g])
+        mc.size = wp.array(size, dtype=f64, device=dev)
+        for name in ("affine", "gainaffine", "biasaffine", "actadr", "ctrllimited",
+                     "forcelimited"):  # fmt: skip
+            setattr(mc, name, ints(np.asarray(fm[f"actuator_{name}"]).reshape(-1)))
+        for name, size_ in _mech_sizes(nv, nk, self.model.nu).items():
+            dtype = int if name in ("held", "in_held", "rows") else f64
+            setattr(mc, name, wp.zeros((nworld, max(size_, 1)), dtype=dtype, device=dev))
+        return mc
+
+    def write(self, d) -> None:
+        """Write user part + the wrenches into d.xfrc_applied's tagged rows."""
+        st = self._worlds_of(d)
+        wp.launch(
+            write_kernel, dim=(st.nworld, self.ntbody),
+            inputs=[self._tbody_bodyid, st.force, st.torque, st.user],
+            outputs=[st.written, d.xfrc_applied], device=self.device,
+        )  # fmt: skip
+
+    def apply(self, d) -> None:
+        """Write user part + the last pass's wrench into d.xfrc_applied's tagged rows
+        (``take_user_part`` then ``write``)."""
+        self.take_user_part(d)
+        self.write(d)
+
     def passive(self, m, d) -> None:
-        """MuJoCo Warp's passive callback: ``compute`` then ``apply`` (``install``)."""
+        """MuJoCo Warp's passive callback (``install``): ``compute``, ``take_user_part``,
+        ``treat``, ``write``: five kernel launches, no host synchronisation."""
         self.compute(d)
-        self.apply(d)
+        self.take_user_part(d)
+        self.treat(m, d)
+        self.write(d)
 
     def install(self, m) -> None:
         """Make the field mjw.Model m's passive callback (chained after any callback already
         there), so every forward pass of ``mjw.step`` applies it. Raises ValueError for an
-        mjw.Model of another model."""
+        mjw.Model of another model, or an integrator the treatment does not support."""
         self._check_model(m)
+        if self._treats or self._mechs:
+            _check_integrator(m)
         prev = m.callback.passive
         if getattr(prev, "__self__", None) is self:
             return
@@ -469,9 +695,42 @@ class WarpField:
         m.callback.passive = getattr(self, "_prev", None)
         if d is not None:
             st = self._worlds_of(d)
-            st.force.zero_()
-            st.torque.zero_()
-            self.apply(d)
+            self.take_user_part(d)
+            wp.launch(
+                restore_kernel, dim=(st.nworld, self.ntbody),
+                inputs=[self._tbody_bodyid, st.user], outputs=[st.written, d.xfrc_applied],
+                device=self.device,
+            )  # fmt: skip
+
+    def reset(self, d, worlds=None) -> None:
+        """Start the field's state over in the worlds of d given by worlds ((nworld,) bool or
+        0/1, NumPy or a Warp int array on the device; None: every world), as mj_resetData does
+        for the engine's: the deforming ground back to its initial surface, the mechanism
+        treatment's records of the previous pass cleared (its next pass is the pure model). Call
+        it when you reset those worlds' state; launches kernels only (capturable) given a Warp
+        mask."""
+        st = self._worlds_of(d)
+        if worlds is None:
+            worlds = np.ones(st.nworld, dtype=np.int32)
+        if not isinstance(worlds, wp.array):
+            worlds = np.asarray(worlds).astype(np.int32).reshape(-1)
+            if worlds.shape != (st.nworld,):
+                raise ValueError(f"worlds: expected shape ({st.nworld},), got {worlds.shape}")
+            worlds = wp.array(worlds, dtype=int, device=self.device)
+        arrays = []  # (array, value)
+        if st.ground is not None:
+            gr = st.ground
+            arrays += [(st.soil, 0.0), (gr.floor, np.inf), (gr.owner, -1), (gr.box, 0.0),
+                       (gr.stats, 0.0)]  # fmt: skip
+        if st.mech is not None:
+            arrays += [(getattr(st.mech, name), 0) for name in _mech_sizes(1, 1, 1)]
+        for arr, value in arrays:
+            kernel = fill_int_rows_kernel if arr.dtype == wp.int32 else fill_rows_kernel
+            cast = int if arr.dtype == wp.int32 else f64
+            wp.launch(
+                kernel, dim=arr.shape, inputs=[worlds, cast(value)], outputs=[arr],
+                device=self.device,
+            )  # fmt: skip
 
     @contextlib.contextmanager
     def installed(self, m, d=None):
@@ -492,6 +751,30 @@ class WarpField:
         out[:, self.body_ids, :3] = st.force.numpy()
         out[:, self.body_ids, 3:] = st.torque.numpy()
         return out
+
+    def decisions(self, d) -> np.ndarray:
+        """(nworld, ntbody) the last pass's low-speed decision per world and tagged body
+        (``body_ids`` order): 0 the pure model, 1 stuck, 2 slipping, 3 linearly implicit (the
+        engine's codes, ``GranularField.decision_of``); a copy."""
+        return self._worlds_of(d).decision.numpy().copy()
+
+    def soil_blocks(self, d) -> np.ndarray:
+        """(nworld, block) each world's deforming ground, the engine's soil block (engine
+        surface.h: head, then the offsets of the surface h and the compacted level c from the
+        initial heights and the memory p [m], nrow x ncol each, row-major); a copy."""
+        st = self._worlds_of(d)
+        if st.soil is None:
+            raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
+        return st.soil.numpy().copy()
+
+    def below_ground(self, d) -> np.ndarray:
+        """(nworld,) per world the tagged body (``body_ids`` index) that reached below the
+        deforming ground's bottom (mjrft:region zmin) in the last update, else -1. The engine
+        raises there; a kernel cannot, so the ground leaves that body's columns uncut."""
+        st = self._worlds_of(d)
+        if st.ground is None:
+            return np.full(st.nworld, -1)
+        return st.ground.status.numpy().copy()
 
     def element_forces_of(self, d) -> np.ndarray:
         """(nworld, nelem, 3) the last pass's element forces [N], world frame, in the engine's

@@ -105,15 +105,16 @@ class HexapodVecEnv:
         downhill azimuth) [deg], a tilted plane; no deforming ground).
     Action: (nworld, 2) gait frequency [Hz] in [0, 4] and tripod B's phase offset [rad].
     Observation: (nworld, OBS_SIZE) float32, the columns of OBSERVATIONS (frames and units as
-    ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. The field has no low-speed
-    treatment (docs/gpu.md): standing still, the robot creeps as under the engine's pure model
-    (``low_speed="off"``).
+    ``hexapod_sand``). Reward: (nworld,) forward speed [m/s]. low_speed: the field's low-speed
+    treatment (default the MJCF's, "stick": legs standing in the medium are held as by the
+    engine; docs/gpu.md).
     """
 
     def __init__(self, nworld: int, *, device: str | None = None, control_timestep: float = 0.02,
                  time_limit: float = 20.0, seed: int = 0, material=None,
                  n_triangles: int | None = None,
-                 slope: tuple[float, float] | None = None) -> None:  # fmt: skip
+                 slope: tuple[float, float] | None = None,
+                 low_speed: str | None = None) -> None:  # fmt: skip
         #: The hexapod compiled without the engine plugin (MuJoCo Warp runs no C plugins; the
         #: field is the WarpField).
         self.mjm = build_spec(slope=slope).compile()
@@ -128,7 +129,9 @@ class HexapodVecEnv:
         self.device = wp.get_device(device)
         self.control_timestep = float(control_timestep)
         self.time_limit = float(time_limit)
-        self.field = WarpField(self.mjm, material, n_triangles=n_triangles, device=device)
+        self.field = WarpField(
+            self.mjm, material, n_triangles=n_triangles, low_speed=low_speed, device=device
+        )
         self._rng = np.random.default_rng(seed)
         self._mjd = mujoco.MjData(self.mjm)
         with wp.ScopedDevice(self.device):
@@ -174,6 +177,7 @@ class HexapodVecEnv:
         d.qvel.zero_()
         d.ctrl.zero_()
         d.time.zero_()
+        self.field.reset(d)  # the treatment's records of the previous episode
         mjw.forward(self.m, d)
         self._x_prev.assign(qpos[:, 0].astype(np.float32))
         self._observe()

@@ -2,8 +2,10 @@
 
 Depth is measured vertically below the surface at the point's horizontal position; a grid is
 linear over the two triangles of each cell (diagonal (c, r)-(c + 1, r + 1), as MuJoCo's
-height-field collision), its nearest edge's height beyond it. World frame, float64. The
-deforming grid (kind SOIL) is not here: the Warp field refuses it.
+height-field collision), its nearest edge's height beyond it. A deforming grid (kind SOIL) adds
+per world the offsets of its heights and compacted levels and its memory (the engine's soil
+block, one row per world of ``soil``; ``w`` selects the row: a kernel sets it on its copy of
+the struct), and its resisting depth (engine surface::SoilDepth). World frame, float64.
 """
 
 from __future__ import annotations
@@ -17,12 +19,19 @@ from mjrft.warp.law import f64, vec3d
 FLAT = wp.constant(s.FLAT)
 PLANE = wp.constant(s.PLANE)
 GRID = wp.constant(s.GRID)
+SOIL = wp.constant(s.SOIL)
+#: engine/surface.h: the soil block's head and its slots; the contact height [m].
+SOIL_HEAD = wp.constant(s.SOIL_HEAD)
+SOIL_ZOFF = wp.constant(s.SOIL_ZOFF)
+SOIL_CONTACT = wp.constant(wp.float64(s.SOIL_CONTACT))
 
 
 @wp.struct
 class Surface:
-    """kind (FLAT, PLANE, GRID); z0 [m]; a plane's gradient gx, gy; a grid's corner x0, y0 [m],
-    spacing dx, dy [m], ncol x nrow vertices of heights grid [m] and its highest point zmax."""
+    """kind (FLAT, PLANE, GRID, SOIL); z0 [m]; a plane's gradient gx, gy; a grid's corner x0,
+    y0 [m], spacing dx, dy [m], ncol x nrow vertices of heights grid [m] and its highest point
+    zmax; a deforming grid's tangent of repose, steps between updates (every), per-world soil
+    blocks soil (nworld, block) and the world w whose row is read."""
 
     kind: int
     z0: f64
@@ -36,6 +45,10 @@ class Surface:
     nrow: int
     zmax: f64
     grid: wp.array2d(dtype=f64)
+    tan_repose: f64
+    every: f64
+    soil: wp.array2d(dtype=f64)
+    w: int
 
 
 def from_core(surf: s.Surface, device) -> Surface:
@@ -48,6 +61,66 @@ def from_core(surf: s.Surface, device) -> Surface:
         setattr(out, name, f64(p[slot]))
     out.ncol, out.nrow = int(p[s.NCOL]), int(p[s.NROW])
     out.grid = wp.array(np.ascontiguousarray(surf.grid, dtype=np.float64), dtype=f64, device=device)
+    if out.kind == s.SOIL:
+        out.tan_repose, out.every = f64(p[s.TAN_REPOSE]), f64(p[s.EVERY])
+    out.soil = wp.zeros((1, 1), dtype=f64, device=device)  # per world: with_soil
+    out.w = 0
+    return out
+
+
+def with_soil(sf: Surface, soil: wp.array) -> Surface:
+    """A copy of sf reading the per-world soil blocks soil (nworld, block)."""
+    out = Surface()
+    for name in Surface.vars:
+        setattr(out, name, getattr(sf, name))
+    out.soil = soil
+    return out
+
+
+@wp.func
+def soil_levels(sf: Surface, x: f64, y: f64) -> vec3d:
+    """(h, c, p) [m] of world sf.w's deforming grid at (x, y), linear over the cell's triangle
+    (engine SoilLevels)."""
+    ncol = sf.ncol
+    n = ncol * sf.nrow
+    u = wp.min(wp.max((x - sf.x0) / sf.dx, f64(0.0)), f64(ncol - 1))
+    v = wp.min(wp.max((y - sf.y0) / sf.dy, f64(0.0)), f64(sf.nrow - 1))
+    c = wp.min(int(u), ncol - 2)
+    r = wp.min(int(v), sf.nrow - 2)
+    fu = u - f64(c)
+    fv = v - f64(r)
+    out = vec3d()
+    for lev in range(3):
+        a = soil_vertex(sf, n, r, c, lev)
+        b = soil_vertex(sf, n, r, c + 1, lev)
+        d = soil_vertex(sf, n, r + 1, c, lev)
+        e = soil_vertex(sf, n, r + 1, c + 1, lev)
+        if fu >= fv:
+            out[lev] = a + fu * (b - a) + fv * (e - b)
+        else:
+            out[lev] = a + fv * (d - a) + fu * (e - d)
+    return out
+
+
+@wp.func
+def soil_vertex(sf: Surface, n: int, r: int, c: int, lev: int) -> f64:
+    """Level lev (0 surface h, 1 compacted c, 2 memory p) [m] of vertex (r, c) of world sf.w."""
+    i = r * sf.ncol + c
+    x = sf.soil[sf.w, SOIL_HEAD + lev * n + i]
+    if lev < 2:
+        x = sf.grid[r, c] + x
+    return x
+
+
+@wp.func
+def soil_depth(sf: Surface, p: vec3d) -> f64:
+    """Resisting depth [m] of p under world sf.w's deforming grid (engine SoilDepth)."""
+    at = soil_levels(sf, p[0], p[1])
+    if p[2] >= at[0] + SOIL_CONTACT:
+        return f64(0.0)
+    out = wp.max(at[0] - p[2], f64(0.0))
+    if p[2] < at[1] + SOIL_CONTACT:
+        out += at[2]
     return out
 
 
@@ -76,12 +149,17 @@ def height(sf: Surface, x: f64, y: f64) -> f64:
         return sf.z0
     if sf.kind == PLANE:
         return sf.z0 + sf.gx * x + sf.gy * y
+    if sf.kind == SOIL:
+        return soil_levels(sf, x, y)[0]
     return grid_height(sf, x, y)
 
 
 @wp.func
 def depth(sf: Surface, p: vec3d) -> f64:
-    """Vertical depth [m] of the world point p below the surface (<= 0: above it)."""
+    """Resisting depth [m] of the world point p: vertically below the surface (<= 0: above it;
+    a deforming grid adds its memory below the compacted level)."""
+    if sf.kind == SOIL:
+        return soil_depth(sf, p)
     return height(sf, p[0], p[1]) - p[2]
 
 
@@ -93,6 +171,8 @@ def ceiling(sf: Surface) -> f64:
         return sf.z0
     if sf.kind == PLANE:
         return f64(wp.inf)
+    if sf.kind == SOIL:
+        return sf.zmax + sf.soil[sf.w, SOIL_ZOFF] + SOIL_CONTACT
     return sf.zmax
 
 
