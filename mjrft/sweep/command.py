@@ -15,8 +15,13 @@ from pathlib import Path
 from mjrft.app import cli
 from mjrft.sweep.runner import SweepSummary
 
+#: Set once SIGTERM arrived: the Terminated exception can come back from a library it passes
+#: through as a plain KeyboardInterrupt (under --ray on a loaded machine, about 1 sweep in 6).
+_SIGTERM_SEEN: list[bool] = [False]
+
 
 def _on_sigterm(signum: int, frame: object) -> None:
+    _SIGTERM_SEEN[0] = True
     raise cli.Terminated  # the sweep ends as on Ctrl-C: runs in flight stopped, rows kept
 
 
@@ -83,6 +88,7 @@ def _main(args: argparse.Namespace, shown: set[str]) -> int:
     again = ["mjrft", "sweep", args.study, "--out", args.out, "--resume"]
     again += ["--workers", str(args.workers)] if args.workers else []
     again += ["--ray", args.ray] if args.ray else []
+    _SIGTERM_SEEN[0] = False
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
         summary = sweep.run_study(
@@ -91,7 +97,8 @@ def _main(args: argparse.Namespace, shown: set[str]) -> int:
         )  # fmt: skip
     except (KeyboardInterrupt, sweep.SweepStopped) as exc:
         progress.close()
-        how = "terminated" if isinstance(exc, cli.Terminated) else "interrupted"
+        terminated = isinstance(exc, cli.Terminated) or _SIGTERM_SEEN[0]
+        how = "terminated" if terminated else "interrupted"
         if isinstance(exc, sweep.SweepStopped):
             how = f"stopped ({exc})"
         print(
