@@ -276,6 +276,10 @@ def _on_sigterm(signum, frame) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    if args.plots_only:
+        return _plots_only(args)
+    if args.duration is None:
+        raise ValueError("--duration SECONDS is required (except with --plots-only)")
     with _StopSignals() as stop:
         try:
             # A signal that escapes _run_prepared came before its first file was written.
@@ -286,6 +290,35 @@ def _run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return exc.code
+
+
+def _plots_only(args: argparse.Namespace) -> int:
+    """`mjrft run MODEL --out DIR --plots-only`: every figure of the run in DIR, drawn from its
+    table (nothing is simulated; MODEL and the scene options give the bodies and the surface)."""
+    from mjrft.app import report, simulate
+
+    out = Path(args.out)
+    table = next((out / n for n in (RUN_CSV, RUN_PARQUET) if (out / n).is_file()), None)
+    if table is None:
+        raise ValueError(
+            f"--out {str(out)!r} holds no run table ({RUN_CSV} or {RUN_PARQUET}): run "
+            "`mjrft run MODEL --out DIR` first"
+        )
+    xml = simulate.resolve_model(args.model)
+    _, _, fld = _scene(args, xml)
+    names = [be.name for be in fld.bodies]
+    columns = simulate.read_table(table)[0]
+    missing = [b for b in names if f"{b}_rft_force_x_N" not in columns]
+    if missing:
+        raise ValueError(
+            f"{table} has no columns of bodies {missing} of {xml.name}: it was written by another "
+            "model or other scene options (give the run's own MODEL and options)"
+        )
+    rec = simulate.Recording.from_file(table, names)
+    title = f"{xml.name}: {fld.scene.material.name}, {fld.n_elements} triangles"
+    paths = report.plot_run(rec, fld.surface, out, title=title, fmt=args.figure_format)
+    print(f"mjrft run {xml.name}: drew {len(paths)} figures from {table}")
+    return 0
 
 
 def _prepare_run(args: argparse.Namespace) -> _RunInfo:
@@ -586,7 +619,8 @@ def _print_summary(
     if run.figures_skipped:
         print(
             f"  figures not drawn, to stay within the simulation's {sim:.2f} s: "
-            f"{', '.join(run.figures_skipped)} (--all-figures draws every figure)"
+            f"{', '.join(run.figures_skipped)} (--plots-only draws them from the table now; "
+            "--all-figures draws every figure in a run)"
         )
     if run.ground is not None:
         g = run.ground
@@ -748,7 +782,10 @@ def _add_run(sub) -> None:
     )
     r.add_argument("model", metavar="MODEL", help=_MODEL_HELP)
     r.add_argument(
-        "--duration", type=_positive_float, required=True, help="simulated time in seconds"
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="simulated time in seconds (required, except with --plots-only)",
     )
     r.add_argument(
         "--out",
@@ -762,6 +799,12 @@ def _add_run(sub) -> None:
         "--no-plots",
         action="store_true",
         help="draw no figures (the table, run.json and any recording are still written)",
+    )
+    figures.add_argument(
+        "--plots-only",
+        action="store_true",
+        help="simulate nothing: draw every figure of the run already in --out from its table "
+        "(give the run's MODEL and scene options)",
     )
     figures.add_argument(
         "--all-figures",
