@@ -69,7 +69,7 @@ bool CheckSensors(const mjModel* m, int instance, const Tables* t, std::string* 
       int geom = m->sensor_objid[j];
       std::snprintf(msg, sizeof(msg),
                     "%s sensor '%s': geom '%s' (id %d) is not an intruder of the granular "
-                    "medium; tag it (docs/mjcf.md, \"Intruders\")",
+                    "medium; tag it (docs/mjcf.md, \"Tagging a robot\")",
                     kSensorPluginName, name, m->names + m->name_geomadr[geom], geom);
     } else {
       continue;
