@@ -15,6 +15,18 @@ import pytest
 
 from mjrft.sweep import RunFailed, Study, StudyError, evaluate, load_results, run_one, run_study
 
+
+@pytest.fixture(autouse=True)
+def _signal_handlers():
+    """Ray Tune installs SIGINT/SIGTERM handlers of its own in this process (its first Ctrl-C
+    stops an experiment gracefully, without KeyboardInterrupt) and leaves them: put back what
+    the process had, so later tests in this worker see Python's own handlers."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+
+
 # A steel sphere 1 cm across dropped onto glass beads from a release height drawn in
 # [1.1, 3] cm: 60 ms of simulated time, 60 steps.
 DROP = """
