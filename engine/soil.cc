@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -73,7 +74,9 @@ inline void Move(f64* soil, const Offsets& o, i64 i, i64 j, f64 q) {
 }
 
 // Moves material between free vertices i and j (heights hi, hj, intruder floors fi, fj [m],
-// +inf where none) so that they differ by at most lim [m]; returns the height moved.
+// +inf where none) if they differ by more than lim [m] (the repose slope's rise between them)
+// by more than kSlopeTolerance of it, so that they then differ by lim; returns the height
+// moved.
 //
 // Material enters the gap under a hovering intruder (floor f) only up to f, and only from a
 // neighbour that is also under an intruder or no higher than f: the intruder's side holds a
@@ -81,13 +84,14 @@ inline void Move(f64* soil, const Offsets& o, i64 i, i64 j, f64 q) {
 inline f64 SettlePair(f64* soil, const Offsets& o, i64 i, f64 hi, f64 fi, i64 j, f64 hj, f64 fj,
                       f64 lim) {
   f64 diff = hi - hj;
-  if (diff > lim + kSlopeSlack) {
+  const f64 start = lim + std::max(kSlopeSlack, kSlopeTolerance * lim);
+  if (diff > start) {
     if (fj < kInf && fi == kInf && hi > fj) return 0.0;
     f64 q = std::min(0.5 * (diff - lim), fj - hj);
     Move(soil, o, i, j, q);
     return q;
   }
-  if (-diff > lim + kSlopeSlack) {
+  if (-diff > start) {
     if (fi < kInf && fj == kInf && hj > fi) return 0.0;
     f64 q = std::min(0.5 * (-diff - lim), fi - hi);
     Move(soil, o, j, i, q);
@@ -107,13 +111,12 @@ struct Queue {
   // Flat index of the i-th waiting vertex (0: the oldest).
   i64 At(i64 q) const { return items[(((tail - count + q) % cap) + cap) % cap]; }
 
-  // Appends vertex i (row r, column c) unless it waits already; seen (4) grows over it.
-  void Push(i64* mark, i64 ncol, i64 i, i64 r, i64 c, f64* seen) {
-    if (mark[r * ncol + c] == kQueued) return;
+  // Appends vertex i unless it waits already.
+  void Push(i64* mark, i64 i) {
+    if (mark[i] == kQueued) return;
     items[tail] = i;
     tail = (tail + 1) % cap;
-    mark[r * ncol + c] = kQueued;
-    Union(seen, r, r, c, c);
+    mark[i] = kQueued;
     count++;
   }
 };
@@ -134,7 +137,7 @@ inline Vertex Free(const f64* grid, const f64* soil, i64 oh, const f64* floor, i
 // Settles free vertex i (row r, column c, height hi, floor fi) with its neighbour at
 // (r + a, c + b) (limit lim); if material moved, queues both.
 inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets& o,
-                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* seen, i64 i, i64 r,
+                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* top, i64 i, i64 r,
                        i64 c, f64 hi, f64 fi, i64 a, i64 b) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   i64 rr = r + a, cc = c + b;
@@ -145,8 +148,9 @@ inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets
   if (SettlePair(soil, o, i, hi, fi, j, vj.h, vj.f, lim) <= 0.0) {
     return;  // in repose, or capped by an intruder: settled
   }
-  queue.Push(mark, ncol, j, rr, cc, seen);
-  queue.Push(mark, ncol, i, r, c, seen);
+  *top = std::max({*top, grid[i] + soil[o.oh + i], grid[j] + soil[o.oh + j]});
+  queue.Push(mark, j);
+  queue.Push(mark, i);
 }
 
 // The eight neighbours of a vertex: row step, column step, index of the limit (x, y, diagonal).
@@ -307,35 +311,39 @@ void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 }
 
 bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
-           f64* box, f64* seen, f64* stats) {
+           const f64* boxes, i64 nbox, f64* pending, f64* top, f64* stats) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   Offsets o = OffsetsOf(prm);
   f64 t = prm[surface::kTanRepose];
   const f64 lim[3] = {t * prm[kDx], t * prm[kDy], t * std::hypot(prm[kDx], prm[kDy])};
-  i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]));
-  i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]));
-  i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]));
-  i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]));
-  if (r0 > r1 || c0 > c1) return true;
-  Union(seen, r0, r1, c0, c1);
-  i64 budget = kMaxSweeps * 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
   Queue q{queue, nrow * ncol};
-  // The sweep: each pair once.
-  for (i64 r = r0; r <= r1; r++) {
-    for (i64 c = c0; c <= c1; c++) {
-      Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
-      if (!vi.free) continue;
-      i64 i = r * ncol + c;
-      f64 hi = vi.h;
-      for (const auto& n : kSweep) {
-        SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
-                   n[1]);
-        hi = grid[i] + soil[o.oh + i];
+  // The sweeps: each pair of a box once.
+  i64 area = 0;
+  for (i64 b = 0; b < nbox; b++) {
+    const f64* box = boxes + 4 * b;
+    i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]));
+    i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]));
+    i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]));
+    i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]));
+    if (r0 > r1 || c0 > c1) continue;
+    area += (r1 - r0 + 1) * (c1 - c0 + 1);
+    for (i64 r = r0; r <= r1; r++) {
+      for (i64 c = c0; c <= c1; c++) {
+        Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
+        if (!vi.free) continue;
+        i64 i = r * ncol + c;
+        f64 hi = vi.h;
+        for (const auto& n : kSweep) {
+          SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0],
+                     n[1]);
+          hi = grid[i] + soil[o.oh + i];
+        }
       }
     }
   }
   // Then vertex by vertex wherever material moved.
-  i64 visits = 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
+  i64 visits = 4 * area;
+  const i64 budget = kMaxSweeps * visits;
   while (q.count > 0 && visits < budget) {
     i64 i = q.At(0);
     q.count--;
@@ -345,45 +353,42 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
     if (!vi.free) continue;
     f64 hi = vi.h;
     for (const auto& n : kNeighbours) {
-      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
-                 n[1]);
+      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0], n[1]);
       hi = grid[i] + soil[o.oh + i];
     }
     visits += 8;
   }
+  stats[kStatVisits] += static_cast<f64>(visits);
+  pending[0] = pending[2] = static_cast<f64>(INT32_MAX);
+  pending[1] = pending[3] = -1.0;
   if (q.count == 0) return true;
   // What is left waits for the next update (its box).
-  f64 lo_r = nrow, hi_r = -1, lo_c = ncol, hi_c = -1;
   for (i64 k = 0; k < q.count; k++) {
     i64 i = q.At(k);
-    f64 r = i / ncol, c = i % ncol;
     mark[i] = -1;
-    lo_r = std::min(lo_r, r);
-    hi_r = std::max(hi_r, r);
-    lo_c = std::min(lo_c, c);
-    hi_c = std::max(hi_c, c);
+    Union(pending, static_cast<f64>(i / ncol), static_cast<f64>(i / ncol),
+          static_cast<f64>(i % ncol), static_cast<f64>(i % ncol));
   }
-  box[0] = lo_r;
-  box[1] = hi_r;
-  box[2] = lo_c;
-  box[3] = hi_c;
   stats[kStatUnrelaxed] += 1;
   return false;
 }
 
-void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
-            f64 time) {
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* boxes,
+            i64 nbox, f64 top, f64 time) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
-  f64 top = -kInf;
-  i64 r0 = std::max<i64>(0, static_cast<i64>(box[0]) - 1);
-  i64 r1 = std::min<i64>(nrow - 1, static_cast<i64>(box[1]) + 1);
-  i64 c0 = std::max<i64>(0, static_cast<i64>(box[2]) - 1);
-  i64 c1 = std::min<i64>(ncol - 1, static_cast<i64>(box[3]) + 1);
-  for (i64 r = r0; r <= r1; r++) {
-    for (i64 c = c0; c <= c1; c++) {
-      top = std::max(top, grid[r * ncol + c] + soil[kSoilHead + r * ncol + c]);
-      floor[r * ncol + c] = kInf;
-      owner[r * ncol + c] = -1;
+  for (i64 b = 0; b < nbox; b++) {
+    const f64* box = boxes + 4 * b;
+    if (box[0] > box[1] || box[2] > box[3]) continue;
+    i64 r0 = std::max<i64>(0, static_cast<i64>(box[0]) - 1);
+    i64 r1 = std::min<i64>(nrow - 1, static_cast<i64>(box[1]) + 1);
+    i64 c0 = std::max<i64>(0, static_cast<i64>(box[2]) - 1);
+    i64 c1 = std::min<i64>(ncol - 1, static_cast<i64>(box[3]) + 1);
+    for (i64 r = r0; r <= r1; r++) {
+      for (i64 c = c0; c <= c1; c++) {
+        top = std::max(top, grid[r * ncol + c] + soil[kSoilHead + r * ncol + c]);
+        floor[r * ncol + c] = kInf;
+        owner[r * ncol + c] = -1;
+      }
     }
   }
   soil[surface::kSoilZoff] = std::max(soil[surface::kSoilZoff], top - prm[surface::kZmax]);

@@ -56,22 +56,31 @@ constexpr f64 kEdgeSlack = 1e-12;
 // squared in sweeps to settle exactly at every step; the budget bounds a step's cost and lets
 // the slope settle over the next steps.
 constexpr int kMaxSweeps = 16;
-// A neighbouring pair may exceed the repose slope by this much [m] before material moves (1 um:
-// a thousandth of a 1 mm grain).
+// A neighbouring pair may be steeper than the repose slope by this fraction of its rise, or by
+// kSlopeSlack if that is more, before material moves (then it moves until the pair is at the
+// repose slope): 1 % of tan(repose), 0.2 deg at 23 deg, inside the scatter of measured angles
+// of repose (+-1 deg and more between tests of one medium). A fraction of the slope, not a
+// height, so that the relaxation stops at the same angle on every cell size; it sets how far a
+// small excess travels down a slope standing at repose, and with it the relaxation's work.
+constexpr f64 kSlopeTolerance = 0.01;
+// The least excess [m] that moves material (1 um: a thousandth of a 1 mm grain; rounding must
+// not keep a pair moving).
 constexpr f64 kSlopeSlack = 1e-6;
 // Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per mjData.
 constexpr i64 kMaxVertices = 2000000;
 // Slots of soil_stats: updates, volume excavated [m^3], volume that found no rim [m^3], updates
-// whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring.
+// whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring,
+// pairs of neighbouring vertices the relaxation compared (its work).
 enum SoilStat {
   kStatUpdates,
   kStatExcavated,
   kStatUnplaced,
   kStatUnrelaxed,
   kStatRasterised,
-  kStatEdge
+  kStatEdge,
+  kStatVisits
 };
-static_assert(kStatEdge + 1 == kNSoilStats, "soil_stats slots");
+static_assert(kStatVisits + 1 == kNSoilStats, "soil_stats slots");
 // owner's value for a vertex waiting in the relaxation's queue (deposition is done by then, and
 // Finish clears the owners).
 constexpr i64 kQueued = -2;
@@ -114,27 +123,30 @@ Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work);
 
-// Relaxes the surface from the vertices of box until no pair of free neighbouring vertices is
-// steeper than the angle of repose, or the work budget is spent; returns true if it converged.
+// Relaxes the surface from the vertices of the nbox vertex boxes (nbox x 4) until no pair of
+// free neighbouring vertices is steeper than the angle of repose, or the work budget is spent;
+// returns true if it converged.
 //
-// One sweep over the box, then a queue (first in, first out) of the vertices that moved: a
-// vertex taken from it is settled against its eight neighbours, and every vertex that moved
-// (it, and each neighbour it gave to or took from) joins the queue again, so the work follows
-// the material, wherever the box's corners are (three legs far apart cost three footprints, not
-// the box spanning them). A pair of which neither vertex moved since it was in repose is still
-// in repose. The budget is the pair visits of kMaxSweeps sweeps of the box. On return box holds
-// the queue's bounding box if it did not empty (the slopes left unrelaxed), and seen (4) has
-// grown over every vertex visited. mark (nrow x ncol): owner, which marks the waiting vertices
-// kQueued (and is cleared by Finish); queue (nrow * ncol): work space for the queue. A vertex
-// an intruder presses on neither gives nor takes (the gap under a hovering one fills up to its
+// One sweep over each box (the footprints' neighbourhoods: their total area, not the box
+// spanning them), then a queue (first in, first out) of the vertices that moved: a vertex taken
+// from it is settled against its eight neighbours, and every vertex that moved (it, and each
+// neighbour it gave to or took from) joins the queue again, so the work follows the material
+// (six legs far apart cost six footprints). A pair of which neither vertex moved since it was in
+// repose is still in repose. The budget is the pair visits of kMaxSweeps sweeps of the boxes
+// (counted in kStatVisits). On return pending (4) holds the queue's bounding box if it did not
+// empty (the slopes left unrelaxed), else an empty box; top [m] has grown over every height
+// that material moved into. mark (nrow x ncol): owner, which marks the waiting vertices kQueued
+// (and is cleared by Finish); queue (nrow * ncol): work space for the queue. A vertex an
+// intruder presses on neither gives nor takes (the gap under a hovering one fills up to its
 // floor).
 bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
-           f64* box, f64* seen, f64* stats);
+           const f64* boxes, i64 nbox, f64* pending, f64* top, f64* stats);
 
-// Closes an update: raises the ceiling (soil[kSoilZoff]) over box, clears floor and owner there
-// (and one vertex around it), and records the time [s] of the configuration followed.
-void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
-            f64 time);
+// Closes an update: clears floor and owner over the nbox vertex boxes (nbox x 4: the
+// footprints; and one vertex around each), raises the ceiling (soil[kSoilZoff]) to the highest
+// of top [m] and the surface there, and records the time [s] of the configuration followed.
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* boxes,
+            i64 nbox, f64 top, f64 time);
 
 }  // namespace mjrft::soil
 

@@ -71,10 +71,25 @@ Levels SoilLevels(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y
 }  // namespace
 
 f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
-  Levels at = SoilLevels(prm, grid, soil, x, y);
-  if (z >= at.h + kSoilContact) return 0.0;
-  f64 depth = std::max(at.h - z, 0.0);
-  if (z < at.c + kSoilContact) depth += at.p;
+  // The levels are interpolated only as far as the point needs: most points the force pass
+  // asks about lie above the surface, and most below it above the compacted level. Above the
+  // surface the depth is negative, as under a fixed grid, so that the force pass drops an
+  // element clear of it after one look-up and clips one the surface crosses where it crosses.
+  Cell k = CellOf(prm, x, y);
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  i64 n = ncol * static_cast<i64>(prm[kNrow]);
+  i64 a = k.r * ncol + k.c, b = a + 1, c = a + ncol, e = c + 1;
+  const f64* oh = soil + kSoilHead;
+  f64 g00 = grid[a], g10 = grid[b], g01 = grid[c], g11 = grid[e];
+  f64 h = Tri(g00 + oh[a], g10 + oh[b], g01 + oh[c], g11 + oh[e], k.fu, k.fv, k.upper);
+  if (z >= h + kSoilContact) return h - z;  // above it: how far (<= 0)
+  f64 depth = std::max(h - z, 0.0);
+  const f64* oc = oh + n;
+  f64 lc = Tri(g00 + oc[a], g10 + oc[b], g01 + oc[c], g11 + oc[e], k.fu, k.fv, k.upper);
+  if (z < lc + kSoilContact) {
+    const f64* op = oc + n;
+    depth += Tri(op[a], op[b], op[c], op[e], k.fu, k.fv, k.upper);
+  }
   return depth;
 }
 

@@ -11,6 +11,7 @@ import pytest
 from mujoco.batch import Batch
 
 import mjrft
+from mjrft.core import soil as rules
 from mjrft.field import GranularField, SceneError
 
 ZETA = 3.3e5  # glass_beads [N/m^3]; alpha_z(0, pi/2) = 1 for a plate pushed straight down
@@ -22,8 +23,9 @@ VOLUME_RTOL = 1e-9
 # within one cell of its edge, where the depth interpolates towards the rim the plate raised
 # (its overburden): measured +0.7 % on a 5 cm plate 8 mm deep at a 2.5 mm cell.
 FRESH_RTOL = 0.015
-# A relaxed pair of neighbours may exceed the repose slope by soil.SLOPE_SLACK (1 um).
-SLOPE_ATOL = 2e-6
+# A relaxed pair of neighbours may be steeper than the repose slope by SLOPE_TOLERANCE of its
+# rise (or SLOPE_SLACK, 1 um, if more), plus rounding.
+SLOPE_RTOL = rules.SLOPE_TOLERANCE + 1e-6
 
 FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
 <custom><text name="mjrft:material" data="glass_beads"/>
@@ -54,9 +56,9 @@ def drive(m, f, d, targets, steps=2, actuator=0):
 
 
 def steepest_free_excess(soil, keep: np.ndarray | None = None) -> float:
-    """Largest amount [m] by which two neighbours (along x, y, diagonals) differ beyond the
-    repose slope, over the interior (the edge ring never changes) and, if given, pairs of
-    vertices where keep (nrow, ncol) is True."""
+    """Largest amount by which two neighbours (along x, y, diagonals) differ beyond the repose
+    slope, as a fraction of the slope's rise between them, over the interior (the edge ring never
+    changes) and, if given, pairs of vertices where keep (nrow, ncol) is True."""
     h = soil.height[1:-1, 1:-1]
     k = np.ones(soil.height.shape, bool) if keep is None else keep
     k = k[1:-1, 1:-1]
@@ -68,7 +70,7 @@ def steepest_free_excess(soil, keep: np.ndarray | None = None) -> float:
         (h[1:, 1:], h[:-1, :-1], k[1:, 1:], k[:-1, :-1], np.sqrt(2.0)),
         (h[1:, :-1], h[:-1, 1:], k[1:, :-1], k[:-1, 1:], np.sqrt(2.0)),
     ):
-        excess = np.abs(a - b) - t * dx * n
+        excess = (np.abs(a - b) - t * dx * n) / (t * dx * n)
         worst = max(worst, float(excess[ka & kb].max()))
     return worst
 
@@ -109,8 +111,12 @@ def test_updating_every_k_steps_does_k_times_fewer_updates_for_the_same_footprin
     # The same cut (the floor follows the deepest update, measured 5.2e-4 relative) ...
     assert out[5][2]["excavated"] == pytest.approx(out[1][2]["excavated"], rel=2e-3)
     assert out[5][1].min() == pytest.approx(out[1][1].min(), abs=2e-3 * CELL)  # 4.0 um
-    # ... relaxed a fifth as often: the rim differs by at most 0.24 mm (0.10 cell).
-    np.testing.assert_allclose(out[5][1], out[1][1], atol=0.15 * CELL)
+    # ... relaxed a fifth as often: the rim differs by at most 0.24 mm (0.10 cell) but at a few
+    # vertices, where a slope that stopped inside soil.SLOPE_TOLERANCE on one history moved on
+    # the other (measured: 4 of 2401 vertices, up to 0.53 mm).
+    diff = np.abs(out[5][1] - out[1][1])
+    assert np.mean(diff > 0.15 * CELL) <= 0.005
+    assert diff.max() <= 0.25 * CELL
 
 
 def test_a_foot_pressed_again_into_its_footprint_feels_fresh_sand_only_at_its_floor():
@@ -160,7 +166,7 @@ def test_a_withdrawn_rod_leaves_a_hole_that_slumps_to_the_angle_of_repose():
     drive(m, f, d, np.linspace(-0.02, 0.05, 100))
     drive(m, f, d, np.full(60, 0.05))  # out of the ground: the hole relaxes
     assert f.soil(d).height[inside].min() > bottom + 0.005  # the walls slumped in
-    assert steepest_free_excess(f.soil(d)) <= SLOPE_ATOL
+    assert steepest_free_excess(f.soil(d)) <= max(SLOPE_RTOL, rules.SLOPE_SLACK / 0.002)
     assert abs(f.soil(d).volume()) <= VOLUME_RTOL * f.soil(d).counters["excavated"]
 
 
@@ -192,7 +198,7 @@ def test_a_dragged_blade_pushes_a_pile_ahead_and_leaves_a_trench_behind():
     x2, y2 = np.meshgrid(soil.x, soil.y)
     free = (np.abs(x2 - d.qpos[0]) > 0.006 + 2 * CELL) | (np.abs(y2) > 0.02 + 2 * CELL)
     assert d.qvel[0] > 0.05  # still moving: its own walls stand, the rest is relaxed
-    assert steepest_free_excess(soil, free) <= 0.1 * CELL * soil.tan_repose
+    assert steepest_free_excess(soil, free) <= 0.1
     assert abs(soil.volume()) <= VOLUME_RTOL * soil.counters["excavated"]
 
 
