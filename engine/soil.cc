@@ -263,6 +263,236 @@ Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
   return out;
 }
 
+namespace {
+
+// Orderable integer of a double (the integers sort as the doubles do), and back: the work
+// array is i64, and the cone's breakpoints are sorted there.
+inline i64 Key(f64 x) {
+  i64 b;
+  std::memcpy(&b, &x, 8);
+  return b ^ ((b >> 63) & INT64_MAX);
+}
+inline f64 Unkey(i64 k) {
+  i64 b = k ^ ((k >> 63) & INT64_MAX);
+  f64 x;
+  std::memcpy(&x, &b, 8);
+  return x;
+}
+
+// The rim of a deposit: vertex box (r0, r1, c0, c1) and the seed offsets there [m] (rows of
+// wcol doubles kept bit for bit in work[0..n); +inf where no rim vertex).
+struct Seeds {
+  i64 r0, r1, c0, c1, wcol, n;
+};
+
+// Lays height target [m] (volume / cell area) of loose material on the surface as a cone at
+// the repose slope around the seeds: every free vertex v near them rises to
+// min(max(h_v, H - tan(repose) d_v), floor_v), d_v its distance [m] to the nearest seed along
+// the grid's x, y and diagonal steps plus that seed's offset, H the height that conserves the
+// volume. The cone's slope between neighbours is the repose slope or less, so the surface
+// stays at repose wherever it was (no pair the cone raised is steeper than either the cone or
+// the old surface) and the relaxation has nothing to move but the intruders' walls. Works over
+// the seeds' box grown until the cone ends inside it; returns false (nothing laid) if that box
+// does not fit in work. Material beyond what the free vertices hold under intruders' floors is
+// counted in kStatUnplaced.
+bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Seeds& sd, f64 target,
+          f64 height_guess, f64* stats, i64* work, i64 nwork) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 t = prm[surface::kTanRepose];
+  const f64 dx = prm[kDx], dy = prm[kDy], dd = std::hypot(dx, dy);
+  auto getw = [&](i64 r, i64 c) {
+    f64 w;
+    std::memcpy(&w, work + (r - sd.r0) * sd.wcol + (c - sd.c0), 8);
+    return w;
+  };
+  // Room for a cone twice the guess's height: a box that is too small is done again larger.
+  i64 grow = static_cast<i64>(std::ceil(2.0 * height_guess / (t * std::min(dx, dy)))) + 2;
+  for (;;) {
+    i64 b0 = std::max<i64>(1, sd.r0 - grow), b1 = std::min<i64>(nrow - 2, sd.r1 + grow);
+    i64 a0 = std::max<i64>(1, sd.c0 - grow), a1 = std::min<i64>(ncol - 2, sd.c1 + grow);
+    i64 bcol = a1 - a0 + 1, nb = (b1 - b0 + 1) * bcol;
+    if (sd.n + 3 * nb > nwork) return false;
+    i64* dist = work + sd.n;  // distances [m] as doubles, then the breakpoints' keys
+    auto at = [&](i64 r, i64 c) -> i64* { return dist + (r - b0) * bcol + (c - a0); };
+    auto getd = [&](i64 r, i64 c) {
+      f64 x;
+      std::memcpy(&x, at(r, c), 8);
+      return x;
+    };
+    auto putd = [&](i64 r, i64 c, f64 x) { std::memcpy(at(r, c), &x, 8); };
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        bool in = r >= sd.r0 && r <= sd.r1 && c >= sd.c0 && c <= sd.c1;
+        putd(r, c, in ? getw(r, c) : kInf);
+      }
+    }
+    // Distance along the grid's steps between free vertices (a column an intruder presses on is
+    // a wall the material goes around): forward and backward passes until nothing changes
+    // (one pair on open ground; a few more around walls).
+    auto pressed = [&](i64 r, i64 c) {
+      i64 v = r * ncol + c;
+      return floor[v] < grid[v] + soil[kSoilHead + v] + kSoilContact;
+    };
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        if (pressed(r, c)) putd(r, c, kInf);
+      }
+    }
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (i64 r = b0; r <= b1; r++) {
+        for (i64 c = a0; c <= a1; c++) {
+          if (pressed(r, c)) continue;
+          f64 x0 = getd(r, c), x = x0;
+          if (c > a0) x = std::min(x, getd(r, c - 1) + dx);
+          if (r > b0) {
+            x = std::min(x, getd(r - 1, c) + dy);
+            if (c > a0) x = std::min(x, getd(r - 1, c - 1) + dd);
+            if (c < a1) x = std::min(x, getd(r - 1, c + 1) + dd);
+          }
+          if (x < x0) {
+            putd(r, c, x);
+            changed = true;
+          }
+        }
+      }
+      for (i64 r = b1; r >= b0; r--) {
+        for (i64 c = a1; c >= a0; c--) {
+          if (pressed(r, c)) continue;
+          f64 x0 = getd(r, c), x = x0;
+          if (c < a1) x = std::min(x, getd(r, c + 1) + dx);
+          if (r < b1) {
+            x = std::min(x, getd(r + 1, c) + dy);
+            if (c < a1) x = std::min(x, getd(r + 1, c + 1) + dd);
+            if (c > a0) x = std::min(x, getd(r + 1, c - 1) + dd);
+          }
+          if (x < x0) {
+            putd(r, c, x);
+            changed = true;
+          }
+        }
+      }
+    }
+    // Each free vertex holds clamp(H - a, 0, cap), a = h + t d, cap = floor - h: the volume is
+    // piecewise linear in H, rising by one at each a and falling by one at each a + cap. A
+    // bracket first (a pass per doubling), then the breakpoints below it, sorted.
+    f64 amin = kInf, room = 0.0;
+    bool open = false;
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        f64 cap = floor[v] - h;
+        f64 a = h + t * getd(r, c);
+        if (cap < kSoilContact || !std::isfinite(a)) continue;
+        amin = std::min(amin, a);
+        if (cap < kInf) {
+          room += cap;
+        } else {
+          open = true;
+        }
+      }
+    }
+    bool fits = open || room >= target;
+    f64 top = amin;
+    if (fits) {
+      f64 inc = std::max(2.0 * height_guess, 1e-9);
+      for (;;) {
+        f64 hb = amin + inc, vol = 0.0;
+        for (i64 r = b0; r <= b1; r++) {
+          for (i64 c = a0; c <= a1; c++) {
+            i64 v = r * ncol + c;
+            f64 h = grid[v] + soil[kSoilHead + v];
+            f64 cap = floor[v] - h;
+            if (cap < kSoilContact) continue;
+            f64 q = std::min(hb - (h + t * getd(r, c)), cap);
+            if (q > 0.0) vol += q;
+          }
+        }
+        if (vol >= target) break;
+        inc *= 2.0;
+      }
+      f64 hb = amin + inc;
+      i64* starts = dist + nb;
+      i64* ends = starts + nb;
+      i64 m = 0, p = 0;
+      for (i64 r = b0; r <= b1; r++) {
+        for (i64 c = a0; c <= a1; c++) {
+          i64 v = r * ncol + c;
+          f64 h = grid[v] + soil[kSoilHead + v];
+          f64 cap = floor[v] - h;
+          f64 a = h + t * getd(r, c);
+          if (cap < kSoilContact || !(a < hb)) continue;
+          starts[m++] = Key(a);
+          if (a + cap < hb) ends[p++] = Key(a + cap);
+        }
+      }
+      std::sort(starts, starts + m);
+      std::sort(ends, ends + p);
+      f64 held = 0.0, x = Unkey(starts[0]);
+      i64 slope = 0, i = 0, j = 0;
+      top = hb;
+      for (;;) {
+        f64 si = i < m ? Unkey(starts[i]) : hb, ej = j < p ? Unkey(ends[j]) : hb;
+        f64 next = std::min(si, ej);
+        if (slope > 0 && held + slope * (next - x) >= target) {
+          top = x + (target - held) / static_cast<f64>(slope);
+          break;
+        }
+        if (i >= m && j >= p) break;  // rounding: the bracket's top
+        held += slope * (next - x);
+        x = next;
+        if (i < m && si <= ej) {
+          slope++;
+          i++;
+        } else {
+          slope--;
+          j++;
+        }
+      }
+    }
+    // The cone must end inside the box (where it does not, a larger box): the box's border, but
+    // where it is the grid's, takes nothing.
+    bool spills = false;
+    bool whole = b0 == 1 && b1 == nrow - 2 && a0 == 1 && a1 == ncol - 2;
+    for (i64 r = b0; r <= b1 && !spills && !whole; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        bool border = (r == b0 && b0 > 1) || (r == b1 && b1 < nrow - 2) || (c == a0 && a0 > 1) ||
+                      (c == a1 && a1 < ncol - 2);
+        if (!border) continue;
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        if (fits && floor[v] - h >= kSoilContact && top > h + t * getd(r, c)) {
+          spills = true;
+          break;
+        }
+      }
+    }
+    if ((spills || !fits) && !whole) {
+      grow = 2 * grow + 1;
+      continue;
+    }
+    f64 laid = 0.0;
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        f64 cap = floor[v] - h;
+        if (cap < kSoilContact) continue;
+        f64 q = fits ? std::min(top - (h + t * getd(r, c)), cap) : cap;
+        if (q > 0.0 && std::isfinite(h + t * getd(r, c))) {
+          soil[kSoilHead + v] += q;
+          laid += q;
+        }
+      }
+    }
+    if (!fits) stats[kStatUnplaced] += (target - laid) * dx * dy;
+    return true;
+  }
+}
+
+}  // namespace
+
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
@@ -300,9 +530,48 @@ void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
       }
     }
     if (total > 0.0) {
-      f64 scale = vol / (prm[kDx] * prm[kDy]) / total;
+      // Seeds: each rim vertex, offset by the footprint's extent times how little of the motion
+      // points its way (a vertical press: none; ahead of a dragged blade: none; behind it: the
+      // whole extent, so the cone rises ahead of the motion and not behind).
+      f64 wmax = 0.0;
+      i64 nrim = 0;
       for (i64 r = r0; r <= r1; r++) {
-        for (i64 c = c0; c <= c1; c++) soil[kSoilHead + r * ncol + c] += get(r, c) * scale;
+        for (i64 c = c0; c <= c1; c++) {
+          wmax = std::max(wmax, get(r, c));
+          nrim += Rim(prm, grid, soil, floor, owner, r, c, k, open_sky) ? 1 : 0;
+        }
+      }
+      f64 extent = std::max((box[1] - box[0] + 1.0) * prm[kDy], (box[3] - box[2] + 1.0) * prm[kDx]);
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          bool rim = Rim(prm, grid, soil, floor, owner, r, c, k, open_sky);
+          put(r, c, rim ? (1.0 - get(r, c) / wmax) * extent : kInf);
+        }
+      }
+      // A guess of the cone's height: the volume as a ridge of triangular section along a rim
+      // of nrim cells, V = rim length x H^2 / (2 tan).
+      f64 cell = std::max(prm[kDx], prm[kDy]);
+      f64 guess = std::sqrt(2.0 * prm[surface::kTanRepose] * vol / (nrim * cell));
+      Seeds sd{r0, r1, c0, c1, wcol, (r1 - r0 + 1) * wcol};
+      f64 target = vol / (prm[kDx] * prm[kDy]);
+      if (Cone(prm, grid, soil, floor, sd, target, guess, stats, work, nrow * ncol)) return;
+      // No room for the cone's box in the work array: the rim takes it all, by weight.
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          f64 off = get(r, c);
+          if (off < kInf) put(r, c, wmax * (1.0 - off / extent));
+        }
+      }
+      f64 sum = 0.0;
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) sum += get(r, c) < kInf ? get(r, c) : 0.0;
+      }
+      f64 scale = target / sum;
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          f64 w = get(r, c);
+          if (w < kInf) soil[kSoilHead + r * ncol + c] += w * scale;
+        }
       }
       return;
     }
