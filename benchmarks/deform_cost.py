@@ -2,6 +2,7 @@
 
 Run: python benchmarks/deform_cost.py [--scenes hexapod go2 wheel] [--seconds 10]
          [--cells 0.005 0.002] [--every 1 10] [--frozen] [--repeats 3]
+         [--baseline TREE --baseline-library LIB]
 Scenes: ``hexapod`` (hexapod_sand, the 1 Hz alternating tripod), ``go2`` (models/go2_sand.xml
 from its home keyframe, ``go2_sand.trot_ctrl``'s open-loop trot) and ``wheel``
 (models/wheel_rig.xml at slip 0.3, one 15 cm pass, 1500 triangles), each on the pristine surface
@@ -11,15 +12,21 @@ looks the grid up at every step, nothing else changes). The cases of a scene run
 repeat by repeat, so a busy machine slows them alike; medians of the wall time, its ratio to
 the pristine run, and the ground's counters: volume drift relative to the volume cut, the share
 of updates whose relaxation met its work budget, pair visits per update. Writes
-benchmarks/results/deform_cost.csv.
+benchmarks/results/deform_cost.csv. ``--baseline``: every case runs in its own process, once with
+this checkout and once with the checkout TREE (its ``mjrft`` package) and its built engine LIB,
+alternating, so two versions of the engine are compared on one busy machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
+import os
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -43,7 +50,7 @@ def _counters(field, data) -> dict:
     c = soil.counters
     return {"volume_drift": abs(soil.volume()) / c["excavated"] if c["excavated"] else 0.0,
             "unrelaxed_share": c["unrelaxed"] / max(c["updates"], 1.0),
-            "visits_per_update": c["visits"] / max(c["updates"], 1.0)}  # fmt: skip
+            "visits_per_update": c.get("visits", math.nan) / max(c["updates"], 1.0)}  # fmt: skip
 
 
 def hexapod(cell: float | None, every: int, seconds: float) -> dict:
@@ -115,6 +122,57 @@ def cases(scene: str, cells: list[float] | None, everys: list[int], frozen: bool
     return out
 
 
+#: Run in a child process: import mjrft from the checkout in argv[1] ("-": as installed; else
+#: without the editable-install finder, its envs/ and models/ folders as mjrft.envs and
+#: mjrft.models, as the wheel installs them), run one case (argv[3:]: scene, cell, every,
+#: seconds) and print its row.
+_CHILD = """
+import importlib.util, json, sys, warnings
+from pathlib import Path
+warnings.simplefilter("ignore")
+if sys.argv[1] != "-":
+    tree = Path(sys.argv[1])
+    sys.meta_path = [f for f in sys.meta_path if "skbc" not in type(f).__module__]
+    sys.path.insert(0, str(tree))
+    import mjrft
+    for sub in ("envs", "models"):
+        spec = importlib.util.spec_from_file_location("mjrft." + sub, tree / sub / "__init__.py",
+                                                      submodule_search_locations=[str(tree / sub)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["mjrft." + sub] = module
+        setattr(mjrft, sub, module)
+        spec.loader.exec_module(module)
+sys.path.insert(0, sys.argv[2])
+import deform_cost as dc
+scene, cell, every, seconds = sys.argv[3], float(sys.argv[4]), int(sys.argv[5]), float(sys.argv[6])
+print(json.dumps(dc.SCENES[scene](cell or None, every, seconds)))
+"""
+
+
+def in_process(tree: Path | None, library: str | None, scene: str, cell, every: int,
+               seconds: float):  # fmt: skip
+    """One case in a child process importing mjrft from checkout tree with engine library
+    (tree None: this checkout, as installed)."""
+    env = dict(os.environ)
+    if library:
+        env["MJRFT_ENGINE_LIBRARY"] = library
+    here = str(Path(__file__).resolve().parent)
+    args = [sys.executable, "-c", _CHILD, str(tree) if tree else "-", here, scene,
+            str(cell or 0.0), str(every), str(seconds)]  # fmt: skip
+    out = subprocess.run(args, env=env, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def report(row: dict, cell, every: int) -> None:
+    """Prints one row."""
+    label = "pristine" if cell is None else f"{cell * 1e3:g} mm, every {every}"
+    extra = (f", drift {row['volume_drift']:.1e}, budget met at {row['unrelaxed_share']:.1%} "
+             f"of updates, {row['visits_per_update']:.0f} visits/update"
+             if "volume_drift" in row else "")  # fmt: skip
+    print(f"{row['version']}: {row['scene']} {label}: {row['wall_s']:.3f} s "
+          f"({row['vs_pristine']:.2f}x){extra}", flush=True)  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", choices=sorted(SCENES), default=sorted(SCENES))
@@ -123,28 +181,36 @@ def main() -> None:
     ap.add_argument("--every", type=int, nargs="+", default=[1], help="mjrft:deform_every")
     ap.add_argument("--frozen", action="store_true", help="add never-updated ground per cell")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--baseline", type=Path, help="another checkout to compare, case by case")
+    ap.add_argument("--baseline-library", help="its built engine (libmjrft_granular.so)")
     args = ap.parse_args()
+    if args.baseline and not args.baseline_library:
+        ap.error("--baseline needs --baseline-library (the engine built from that checkout)")
+    versions = [("this", None)] + ([("baseline", args.baseline)] if args.baseline else [])
     rows = []
     for scene in args.scenes:
         todo = cases(scene, args.cells, args.every, args.frozen)
-        runs = {c: [] for c in todo}
+        runs = {(v, c): [] for v, _ in versions for c in todo}
         for _ in range(args.repeats):
             for cell, every in todo:
-                runs[(cell, every)].append(SCENES[scene](cell, every, args.seconds))
-        base = statistics.median(r["wall_s"] for r in runs[todo[0]])
-        for (cell, every), rs in runs.items():
-            wall = statistics.median(r["wall_s"] for r in rs)
-            row = {"scene": scene, "cell_m": cell or 0.0, "every": every, **rs[0],
-                   "wall_s": wall, "vs_pristine": wall / base}  # fmt: skip
-            rows.append(row)
-            label = "pristine" if cell is None else f"{cell * 1e3:g} mm, every {every}"
-            extra = (f", drift {row['volume_drift']:.1e}, budget met at "
-                     f"{row['unrelaxed_share']:.1%} of updates, "
-                     f"{row['visits_per_update']:.0f} visits/update" if "volume_drift" in row
-                     else "")  # fmt: skip
-            print(f"{scene} {label}: {wall:.3f} s ({row['vs_pristine']:.2f}x){extra}", flush=True)
+                for version, tree in versions:
+                    if args.baseline:
+                        lib = args.baseline_library if tree else None
+                        row = in_process(tree, lib, scene, cell, every, args.seconds)
+                    else:
+                        row = SCENES[scene](cell, every, args.seconds)
+                    runs[(version, (cell, every))].append(row)
+        for version, _ in versions:
+            base = statistics.median(r["wall_s"] for r in runs[(version, todo[0])])
+            for cell, every in todo:
+                rs = runs[(version, (cell, every))]
+                wall = statistics.median(r["wall_s"] for r in rs)
+                row = {"version": version, "scene": scene, "cell_m": cell or 0.0, "every": every,
+                       **rs[0], "wall_s": wall, "vs_pristine": wall / base}  # fmt: skip
+                rows.append(row)
+                report(row, cell, every)
     OUT.parent.mkdir(exist_ok=True)
-    keys = ["scene", "cell_m", "every", "wall_s", "vs_pristine", "x_m", "volume_drift",
+    keys = ["version", "scene", "cell_m", "every", "wall_s", "vs_pristine", "x_m", "volume_drift",
             "unrelaxed_share", "visits_per_update"]  # fmt: skip
     with OUT.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=keys)
