@@ -19,16 +19,21 @@
 //    compacted level (c = h = floor) and remembers as its depth reference the larger of the old
 //    surface h and the old c + p (Chrono SCM's sinkage memory plays this role in Bekker-Wong
 //    soil).
-// 3. Deposition (Deposit): each intruder's excavated volume is spread over the rim of its
-//    footprint (the unoccupied vertices next to it), weighted towards the horizontal motion of
-//    the footprint's centre: a vertical intrusion raises an even rim, a horizontal one
-//    bulldozes ahead of it. It lands as loose material (h grows, c and p unchanged).
+// 3. Deposition (Deposit): each intruder's excavated volume is laid as a cone at the repose
+//    slope around the rim of its footprint (the unoccupied vertices next to it): a vertex at
+//    distance d from the rim (along the grid's steps, around pressed columns) rises to
+//    max(h, H - tan(repose) d), H conserving the volume. Rim vertices are offset by the
+//    footprint's extent times how little of its horizontal motion points their way: a vertical
+//    intrusion raises an even ring, a horizontal one bulldozes ahead of it. The cone is no
+//    steeper than the repose slope, so ground that was at repose stays so. It lands as loose
+//    material (h grows, c and p unchanged).
 // 4. Relaxation (Relax): wherever two neighbouring vertices (along x, y and both diagonals)
-//    differ by more than tan(repose) times their distance, material moves from the higher to
-//    the lower one (half the excess, so the pair ends exactly at the repose slope): one sweep
-//    over the box of recent activity, then vertex by vertex wherever material moved, never into
-//    or out of a column an intruder presses on or the grid's edge ring, and into the gap under
-//    a hovering intruder only up to its floor.
+//    differ by more than tan(repose) times their distance (by more than kSlopeTolerance of
+//    that), material moves from the higher to the lower one (half the excess, so the pair ends
+//    exactly at the repose slope): one sweep over each intruder's box (where it is and was),
+//    then vertex by vertex wherever material moved, never into or out of a column an intruder
+//    presses on or the grid's edge ring, and into the gap under a hovering intruder only up to
+//    its floor.
 //
 // Every move subtracts from one vertex exactly what it adds to another, and the edge ring never
 // changes, so the volume under the surface (dx dy times the sum of h over the vertices) is
@@ -50,11 +55,11 @@ namespace mjrft::soil {
 // Barycentric slack of the rasterisation: a vertex on an edge shared by two triangles is
 // covered by both, whatever the rounding.
 constexpr f64 kEdgeSlack = 1e-12;
-// Relaxation work per update at most, in sweeps of the update's box (Relax: the pair visits of
-// this many sweeps); what is left continues at the next update (counted in kStatUnrelaxed). A
-// pile's excess travels down its slope diffusively, so a growing berm would take ~its width
-// squared in sweeps to settle exactly at every step; the budget bounds a step's cost and lets
-// the slope settle over the next steps.
+// Relaxation work per update at most, in sweeps of the update's boxes (Relax: the pair visits
+// of this many sweeps); what is left continues at the next update (counted in kStatUnrelaxed).
+// A wall's excess travels down its slope diffusively, so a deep hole's collapse would take ~its
+// width squared in sweeps to settle exactly at one step; the budget bounds a step's cost and
+// lets the slope settle over the next steps.
 constexpr int kMaxSweeps = 16;
 // A neighbouring pair may be steeper than the repose slope by this fraction of its rise, or by
 // kSlopeSlack if that is more, before material moves (then it moves until the pair is at the
@@ -112,14 +117,16 @@ struct Cut {
 Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, const f64* twist, f64 zlo, f64* stats);
 
-// Spreads volume vol [m^3] of intruder k over the rim of its footprint (the vertices next to
+// Lays volume vol [m^3] of intruder k around the rim of its footprint (the vertices next to
 // those it presses on, inside box grown by one vertex, with no intruder over them; failing
-// those, the ones under an intruder but free of contact), weighted towards the horizontal
-// direction of v (3) [m/s] from the footprint's centre (mx, my) [m]: weight (1 - s) +
-// 2 s max(0, cos), s = |v_xy| / (|v_xy| + |v_z|), so a vertical intrusion raises an even rim
-// and a horizontal one piles ahead. Loose material: h grows, c and p stay. What finds no rim
-// is counted (kStatUnplaced). work (nrow * ncol, the relaxation's queue, free until then)
-// holds the rim's weights as doubles while they are summed and spent.
+// those, the ones under an intruder but free of contact) as a cone at the repose slope (step 3
+// above): each rim vertex is offset by the footprint's extent times 1 - w / max w, w = (1 - s) +
+// 2 s max(0, cos) the weight of its direction from the footprint's centre (mx, my) [m] against
+// the horizontal direction of v (3) [m/s], s = |v_xy| / (|v_xy| + |v_z|). Vertices under an
+// intruder take material up to its floor; what finds no room is counted (kStatUnplaced). Loose
+// material: h grows, c and p stay. work (nrow * ncol, the relaxation's queue, free until then)
+// holds the rim's offsets and the cone's distances and breakpoints; a cone whose box needs more
+// falls back to the rim alone, by weight.
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work);
 

@@ -170,6 +170,70 @@ def test_a_withdrawn_rod_leaves_a_hole_that_slumps_to_the_angle_of_repose():
     assert abs(f.soil(d).volume()) <= VOLUME_RTOL * f.soil(d).counters["excavated"]
 
 
+def test_a_hole_relaxes_in_a_state_restored_into_a_fresh_mjdata():
+    """The rod pressed in, its state restored into a new MjData (whose work arrays never saw an
+    update) and the rod taken out of the ground in one step: the update relaxes the hole from
+    the footprints' box the state keeps, as the MjData that made it would."""
+    m, f, d = load(ROD)
+    drive(m, f, d, np.linspace(0.0, -0.02, 150))
+    what = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    saved = np.empty(mujoco.mj_stateSize(m, what))
+    mujoco.mj_getState(m, d, saved, what)
+    fresh = mujoco.MjData(m)
+    mujoco.mj_setState(m, fresh, saved, what)
+    bottom = fresh.qpos[0]
+    fresh.qpos[0] = 0.2  # far above the ground at the next update
+    fresh.ctrl[0] = 0.2
+    mujoco.mj_step(m, fresh)
+    soil = f.soil(fresh)
+    x, y = np.meshgrid(soil.x, soil.y)
+    inside = np.hypot(x, y) < 0.006 - 0.001
+    assert soil.height[inside].min() > bottom + 0.005  # the walls slumped in
+    assert abs(soil.volume()) <= VOLUME_RTOL * soil.counters["excavated"]
+
+
+TWO_FEET = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<numeric name="mjrft:region" data="-0.08 -0.08 -0.1 0.08 0.08 0.05"/>
+<numeric name="mjrft:deform_cell" data="0.0025"/>
+<tuple name="mjrft:intruders"><element objtype="body" objname="a" prm="300"/>
+<element objtype="body" objname="b" prm="300"/></tuple></custom>
+<worldbody>
+<body name="a" pos="-0.05 -0.05 0.005"><joint name="za" type="slide" axis="0 0 1"/>
+<geom type="box" size="0.006 0.006 0.005" mass="0.1"/></body>
+<body name="b" pos="0.05 0.05 0.005"><joint name="zb" type="slide" axis="0 0 1"/>
+<geom type="box" size="0.006 0.006 0.005" mass="0.1"/></body></worldbody>
+<actuator><position joint="za" kp="1e4" kv="200"/><position joint="zb" kp="1e4" kv="200"/>
+</actuator></mujoco>"""
+
+
+def test_relaxation_work_follows_the_feet_not_the_box_between_them():
+    """Two feet 14 cm apart (diagonally) pressed 8 mm and lifted: the relaxation compares pairs
+    around each foot (soil counters' "visits"), far fewer than one sweep of the box spanning
+    both feet would; the cut volume is laid at the repose slope, so each update's work is
+    little more than its sweeps, and the slopes end at repose."""
+    m, f, d = load(TWO_FEET)
+    targets = np.concatenate([np.linspace(0.0, -0.008, 60), np.linspace(-0.008, 0.01, 30)])
+    for tgt in targets:
+        d.ctrl[:] = tgt
+        for _ in range(2):
+            mujoco.mj_step(m, d)
+    soil = f.soil(d)
+    c = soil.counters
+    cell = soil.x[1] - soil.x[0]
+    # A foot's box: its 12 mm side plus one vertex around it, where it is and was.
+    foot = (round(0.012 / cell) + 3) ** 2
+    spanning = (round((0.1 + 0.012) / cell) + 3) ** 2  # the box over both feet
+    assert c["visits"] / c["updates"] < 0.1 * 4 * spanning
+    # Sweeps of both feet's boxes (4 pairs a vertex) and the walls freed as the feet rose:
+    # measured 393 pair visits per update, 0.77 sweeps' worth (without the cone: 1155; with one
+    # box over both feet: 16,400).
+    assert c["visits"] / c["updates"] < 2 * 4 * 2 * foot
+    assert c["unrelaxed"] == 0
+    assert steepest_free_excess(soil) <= SLOPE_RTOL
+    assert abs(soil.volume()) <= VOLUME_RTOL * c["excavated"]
+
+
 BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
 <custom><text name="mjrft:material" data="glass_beads"/>
 <numeric name="mjrft:region" data="-0.05 -0.04 -0.1 0.15 0.04 0.05"/>
