@@ -1,74 +1,218 @@
-"""Cost of the deforming ground: the walking hexapod with it off and at two grid cells.
+"""Cost of the deforming ground against the same scene on pristine ground, back to back.
 
-Run: python benchmarks/deform_cost.py [--repeats 3]
-hexapod_sand (10 s of the 1 Hz alternating tripod, 500 control steps) on the pristine surface
-and on deforming ground at 5 mm and 2 mm cells, updated every step and every 10 steps
-(mjrft:deform_every); medians over repeats of the wall time, the ratio to the pristine run, the
-distance walked, the volume drift relative to the volume cut and the share of updates whose
-relaxation met its sweep budget. Writes benchmarks/results/deform_cost.csv.
+Run: python benchmarks/deform_cost.py [--scenes hexapod go2 wheel] [--seconds 10]
+         [--cells 0.005 0.002] [--every 1 10] [--frozen] [--repeats 3]
+         [--baseline TREE --baseline-library LIB]
+Scenes: ``hexapod`` (hexapod_sand, the 1 Hz alternating tripod), ``go2`` (models/go2_sand.xml
+from its home keyframe, ``go2_sand.trot_ctrl``'s open-loop trot) and ``wheel``
+(models/wheel_rig.xml at slip 0.3, one 15 cm pass, 1500 triangles), each on the pristine surface
+and on deforming ground per cell [m] and per mjrft:deform_every; ``--frozen`` adds, per cell,
+ground that follows the intruders only at its first update (deform_every 1e8: the force pass
+looks the grid up at every step, nothing else changes). The cases of a scene run interleaved,
+repeat by repeat, so a busy machine slows them alike; medians of the wall time, its ratio to
+the pristine run, and the ground's counters: volume drift relative to the volume cut, the share
+of updates whose relaxation met its work budget, pair visits per update. Writes
+benchmarks/results/deform_cost.csv. ``--baseline``: every case runs in its own process, once with
+this checkout and once with the checkout TREE (its ``mjrft`` package) and its built engine LIB,
+alternating, so two versions of the engine are compared on one busy machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
+import os
 import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
-from mjrft.envs import hexapod_sand
 
 OUT = Path(__file__).resolve().parent / "results" / "deform_cost.csv"
-#: (cell [m], steps between updates); cell None: the pristine surface.
-CASES = ((None, 1), (0.005, 1), (0.005, 10), (0.002, 1), (0.002, 10))
-WALK_S = 10.0
+#: Default cells [m] per scene: the hexapod's documented 5 and 2 mm, the Go2's 5 and 2.5 mm,
+#: the wheel's 5 mm (benchmarks/wheel_slip.py).
+CELLS = {"hexapod": (0.005, 0.002), "go2": (0.005, 0.0025), "wheel": (0.005,)}
+FROZEN = 10**8  # deform_every that never updates again after the first update
+#: The Go2's medium [m] (xmin ymin zmin xmax ymax zmax): its open-loop trot covers about 1 m
+#: in 4 s (leaving a smaller region it falls), and its calves reach 0.3 m deep on deforming
+#: ground at a 5 mm cell.
+GO2_REGION = [-0.5, -0.6, -0.6, 1.5, 0.6, 0.05]
+WHEEL_SLIP, WHEEL_LENGTH, WHEEL_TRIANGLES = 0.3, 0.15, 1500
 
 
-def walk(cell: float | None, every: int) -> dict:
-    """One 10 s walk; wall time [s] and the ground's counters."""
+def _counters(field, data) -> dict:
+    """The ground's counters as benchmark columns."""
+    soil = field.soil(data)
+    c = soil.counters
+    return {"volume_drift": abs(soil.volume()) / c["excavated"] if c["excavated"] else 0.0,
+            "unrelaxed_share": c["unrelaxed"] / max(c["updates"], 1.0),
+            "visits_per_update": c.get("visits", math.nan) / max(c["updates"], 1.0)}  # fmt: skip
+
+
+def hexapod(cell: float | None, every: int, seconds: float) -> dict:
+    """The hexapod's tripod walk for seconds [s] of simulated time."""
+    from mjrft.envs import hexapod_sand
+
     env = hexapod_sand.make(seed=0, time_limit=math.inf, deform_cell=cell,
                             deform_every=every if cell else None)  # fmt: skip
     try:
         env.reset()
         action = np.array([1.0, math.pi])
-        n = round(WALK_S / env.control_timestep())
+        n = round(seconds / env.control_timestep())
         t0 = time.perf_counter()
         for _ in range(n):
             env.step(action)
-        wall = time.perf_counter() - t0
-        physics = env.physics
-        row = {"cell_m": cell or 0.0, "every": every, "wall_s": wall,
-               "x_m": float(physics.data.qpos[0])}  # fmt: skip
+        row = {"wall_s": time.perf_counter() - t0, "x_m": float(env.physics.data.qpos[0])}
         if cell:
-            soil = physics.field.soil(physics.data.ptr)
-            c = soil.counters
-            row["volume_drift"] = abs(soil.volume()) / c["excavated"]
-            row["unrelaxed_share"] = c["unrelaxed"] / c["updates"]
+            row.update(_counters(env.physics.field, env.physics.data.ptr))
         return row
     finally:
         env.close()
 
 
+def go2(cell: float | None, every: int, seconds: float) -> dict:
+    """The Go2's open-loop trot from its home keyframe for seconds [s] of simulated time."""
+    from mjrft.envs import go2_sand
+
+    import mjrft
+
+    options = mjrft.SceneOptions(deform_cell=cell, deform_every=every if cell else None)
+    spec = go2_sand.build_spec()
+    spec.add_numeric(name="mjrft:region", data=GO2_REGION)  # both cases, the same scene
+    model = mjrft.load_model(spec, options)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    substeps = round(0.02 / model.opt.timestep)
+    t0 = time.perf_counter()
+    for _ in range(round(seconds / 0.02)):
+        data.ctrl[:] = go2_sand.trot_ctrl(data.time)
+        mujoco.mj_step(model, data, substeps)
+    row = {"wall_s": time.perf_counter() - t0, "x_m": float(data.qpos[0])}
+    if cell:
+        row.update(_counters(mjrft.GranularField(model), data))
+    return row
+
+
+def wheel(cell: float | None, every: int, seconds: float) -> dict:
+    """One pass of the wheel rig (its length, not seconds, sets the duration)."""
+    from mjrft.app import wheel as rig
+
+    if every != 1:
+        raise ValueError("the wheel rig updates its ground at every step (--every 1)")
+    t0 = time.perf_counter()
+    p = rig.run(WHEEL_SLIP, deform_cell=cell or 0.0, length=WHEEL_LENGTH,
+                n_triangles=WHEEL_TRIANGLES)[0]  # fmt: skip
+    return {"wall_s": time.perf_counter() - t0, "x_m": p.sinkage}
+
+
+SCENES = {"hexapod": hexapod, "go2": go2, "wheel": wheel}
+
+
+def cases(scene: str, cells: list[float] | None, everys: list[int], frozen: bool) -> list:
+    """(cell or None for pristine, deform_every) of one scene."""
+    out = [(None, 1)]
+    for cell in cells or CELLS[scene]:
+        out += [(cell, e) for e in (everys if scene != "wheel" else [1])]
+        if frozen and scene != "wheel":
+            out.append((cell, FROZEN))
+    return out
+
+
+#: Run in a child process: import mjrft from the checkout in argv[1] ("-": as installed; else
+#: without the editable-install finder, its envs/ and models/ folders as mjrft.envs and
+#: mjrft.models, as the wheel installs them), run one case (argv[3:]: scene, cell, every,
+#: seconds) and print its row.
+_CHILD = """
+import importlib.util, json, sys, warnings
+from pathlib import Path
+warnings.simplefilter("ignore")
+if sys.argv[1] != "-":
+    tree = Path(sys.argv[1])
+    sys.meta_path = [f for f in sys.meta_path if "skbc" not in type(f).__module__]
+    sys.path.insert(0, str(tree))
+    import mjrft
+    for sub in ("envs", "models"):
+        spec = importlib.util.spec_from_file_location("mjrft." + sub, tree / sub / "__init__.py",
+                                                      submodule_search_locations=[str(tree / sub)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["mjrft." + sub] = module
+        setattr(mjrft, sub, module)
+        spec.loader.exec_module(module)
+sys.path.insert(0, sys.argv[2])
+import deform_cost as dc
+scene, cell, every, seconds = sys.argv[3], float(sys.argv[4]), int(sys.argv[5]), float(sys.argv[6])
+print(json.dumps(dc.SCENES[scene](cell or None, every, seconds)))
+"""
+
+
+def in_process(tree: Path | None, library: str | None, scene: str, cell, every: int,
+               seconds: float):  # fmt: skip
+    """One case in a child process importing mjrft from checkout tree with engine library
+    (tree None: this checkout, as installed)."""
+    env = dict(os.environ)
+    if library:
+        env["MJRFT_ENGINE_LIBRARY"] = library
+    here = str(Path(__file__).resolve().parent)
+    args = [sys.executable, "-c", _CHILD, str(tree) if tree else "-", here, scene,
+            str(cell or 0.0), str(every), str(seconds)]  # fmt: skip
+    out = subprocess.run(args, env=env, capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def report(row: dict, cell, every: int) -> None:
+    """Prints one row."""
+    label = "pristine" if cell is None else f"{cell * 1e3:g} mm, every {every}"
+    extra = (f", drift {row['volume_drift']:.1e}, budget met at {row['unrelaxed_share']:.1%} "
+             f"of updates, {row['visits_per_update']:.0f} visits/update"
+             if "volume_drift" in row else "")  # fmt: skip
+    print(f"{row['version']}: {row['scene']} {label}: {row['wall_s']:.3f} s "
+          f"({row['vs_pristine']:.2f}x){extra}", flush=True)  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", nargs="+", choices=sorted(SCENES), default=sorted(SCENES))
+    ap.add_argument("--seconds", type=float, default=10.0, help="simulated time per walk [s]")
+    ap.add_argument("--cells", type=float, nargs="+", help="cells [m] (default: per scene)")
+    ap.add_argument("--every", type=int, nargs="+", default=[1], help="mjrft:deform_every")
+    ap.add_argument("--frozen", action="store_true", help="add never-updated ground per cell")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--baseline", type=Path, help="another checkout to compare, case by case")
+    ap.add_argument("--baseline-library", help="its built engine (libmjrft_granular.so)")
     args = ap.parse_args()
-    runs = {case: [walk(*case) for _ in range(args.repeats)] for case in CASES}
-    base = statistics.median(r["wall_s"] for r in runs[CASES[0]])
+    if args.baseline and not args.baseline_library:
+        ap.error("--baseline needs --baseline-library (the engine built from that checkout)")
+    versions = [("this", None)] + ([("baseline", args.baseline)] if args.baseline else [])
     rows = []
-    for (cell, every), rs in runs.items():
-        wall = statistics.median(r["wall_s"] for r in rs)
-        row = {**rs[0], "wall_s": wall, "vs_pristine": wall / base}
-        rows.append(row)
-        label = "pristine" if cell is None else f"{cell * 1e3:g} mm cell, every {every} steps"
-        extra = (f", volume drift {row['volume_drift']:.1e}, budget met at "
-                 f"{row['unrelaxed_share']:.1%} of updates" if cell else "")  # fmt: skip
-        print(f"{label}: {wall:.2f} s for {WALK_S:g} s ({row['vs_pristine']:.1f}x), walked "
-              f"{row['x_m']:.3f} m{extra}")  # fmt: skip
+    for scene in args.scenes:
+        todo = cases(scene, args.cells, args.every, args.frozen)
+        runs = {(v, c): [] for v, _ in versions for c in todo}
+        for _ in range(args.repeats):
+            for cell, every in todo:
+                for version, tree in versions:
+                    if args.baseline:
+                        lib = args.baseline_library if tree else None
+                        row = in_process(tree, lib, scene, cell, every, args.seconds)
+                    else:
+                        row = SCENES[scene](cell, every, args.seconds)
+                    runs[(version, (cell, every))].append(row)
+        for version, _ in versions:
+            base = statistics.median(r["wall_s"] for r in runs[(version, todo[0])])
+            for cell, every in todo:
+                rs = runs[(version, (cell, every))]
+                wall = statistics.median(r["wall_s"] for r in rs)
+                row = {"version": version, "scene": scene, "cell_m": cell or 0.0, "every": every,
+                       **rs[0], "wall_s": wall, "vs_pristine": wall / base}  # fmt: skip
+                rows.append(row)
+                report(row, cell, every)
     OUT.parent.mkdir(exist_ok=True)
-    keys = ["cell_m", "every", "wall_s", "vs_pristine", "x_m", "volume_drift", "unrelaxed_share"]
+    keys = ["version", "scene", "cell_m", "every", "wall_s", "vs_pristine", "x_m", "volume_drift",
+            "unrelaxed_share", "visits_per_update"]  # fmt: skip
     with OUT.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=keys)
         w.writeheader()

@@ -3,6 +3,7 @@
 #include "deform.h"
 
 #include <cstdint>
+#include <limits>
 
 #include "evaluate.h"
 #include "soil.h"
@@ -80,6 +81,15 @@ int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
   const f64* grid = t.surface_grid;
   f64* block = s.soil;
   i64 nk = t.ntbody;
+  // Rows of s.soil_box (deform.h): the footprints of the last update and the fingerprint of the
+  // state they belong to, kept in the work arrays between updates.
+  f64* prev = s.soil_box + 4 * (nk + 1);
+  f64* print = s.soil_box + 4 * (2 * nk + 1);
+  f64* sweep = s.soil_box + 4 * (2 * nk + 2);
+  const bool known = print[3] == 1.0 && block[surface::kSoilDone] == 1.0 &&
+                     print[0] == s.soil_stats[soil::kStatUpdates] &&
+                     print[1] == s.soil_stats[soil::kStatExcavated] &&
+                     print[2] == block[surface::kSoilTime];
   Footprints(d, t, s, surface::Ceiling(prm, block));
   const f64* allbox = s.soil_box + 4 * nk;
 
@@ -106,29 +116,43 @@ int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
     }
   }
 
-  // Relax where the intruders are, where they were (a withdrawn rod leaves a hole to slump) and
-  // where the last update left slopes unrelaxed.
-  f64* box = s.soil_box + 4 * (nk + 1);
-  f64* seen = s.soil_box + 4 * (nk + 2);
-  for (int c = 0; c < 4; c++) box[c] = allbox[c];
-  HeadUnion(box, block, surface::kSoilFoot);
-  HeadUnion(box, block, surface::kSoilPending);
+  // Relax where each intruder is and where it was at the last update (a withdrawn rod leaves a
+  // hole to slump), one box each, and where the last update left slopes unrelaxed. Where the
+  // last footprints are not known (a state this mjData's updates did not write: a reset, a
+  // restored or copied state), the box spanning them all, which the state keeps.
+  for (i64 k = 0; k < nk; k++) {
+    f64* box = sweep + 4 * k;
+    Empty(box);
+    const f64* kb = s.soil_box + 4 * k;
+    soil::Union(box, kb[0], kb[1], kb[2], kb[3]);
+    if (known) soil::Union(box, prev[4 * k], prev[4 * k + 1], prev[4 * k + 2], prev[4 * k + 3]);
+  }
+  f64* extra = sweep + 4 * nk;
+  Empty(extra);
+  Empty(extra + 4);
+  HeadUnion(extra, block, surface::kSoilPending);
+  if (!known) HeadUnion(extra + 4, block, surface::kSoilFoot);
   HeadStore(block, surface::kSoilFoot, allbox, true);
   s.soil_stats[soil::kStatUpdates] += 1;
-  if (box[0] > box[1]) {
-    block[surface::kSoilDone] = 1.0;
-    block[surface::kSoilTime] = d->time;
-    return bad;
+  for (i64 b = 0; b < nk + 2; b++) {
+    f64* box = sweep + 4 * b;
+    if (box[0] > box[1]) continue;
+    box[0] -= 1;
+    box[1] += 1;
+    box[2] -= 1;
+    box[3] += 1;
   }
-  box[0] -= 1;
-  box[1] += 1;
-  box[2] -= 1;
-  box[3] += 1;
-  for (int c = 0; c < 4; c++) seen[c] = box[c];
-  bool converged = soil::Relax(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_queue, box,
-                               seen, s.soil_stats);
-  HeadStore(block, surface::kSoilPending, box, !converged);
-  soil::Finish(prm, grid, block, s.soil_floor, s.soil_owner, seen, d->time);
+  f64 pending[4];
+  f64 top = -std::numeric_limits<f64>::infinity();
+  bool converged = soil::Relax(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_queue, sweep,
+                               nk + 2, pending, &top, s.soil_stats);
+  HeadStore(block, surface::kSoilPending, pending, !converged);
+  soil::Finish(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_box, nk, top, d->time);
+  for (i64 c = 0; c < 4 * nk; c++) prev[c] = s.soil_box[c];
+  print[0] = s.soil_stats[soil::kStatUpdates];
+  print[1] = s.soil_stats[soil::kStatExcavated];
+  print[2] = block[surface::kSoilTime];
+  print[3] = 1.0;
   return bad;
 }
 

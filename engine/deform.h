@@ -22,8 +22,10 @@ bool Due(const mjModel* m, const mjData* d, const Tables& t, const State& s);
 
 // Moves the ground of this mjData (s.soil) to the intruders' current configuration (d->xpos,
 // xmat, cvel, subtree_com, geom_xpos, time). Work arrays: s.soil_floor, soil_owner, soil_queue,
-// soil_box (rows 0..nk-1: each tagged body's footprint box, nk: their union, nk + 1: the
-// relaxation's box, nk + 2: the vertices it visited); counters in s.soil_stats. Returns -1, or
+// soil_box (rows 0..nk-1: each tagged body's footprint box, nk: their union, nk + 1..2 nk: the
+// footprint boxes of the last update, 2 nk + 1: the fingerprint of the state that update left
+// (updates, excavated, time, 1), then nk + 2 rows: the relaxation's boxes); counters in
+// s.soil_stats. Returns -1, or
 // the tagged body that reaches below the medium's bottom (nothing then moved for it).
 int Update(const mjModel* m, const mjData* d, const Tables& t, State& s);
 

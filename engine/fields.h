@@ -121,7 +121,7 @@
   X(f64, soil_floor, soil_nrow* soil_ncol, "work: intruders' lowest point per vertex [m]")  \
   X(i64, soil_owner, soil_nrow* soil_ncol, "work: the tagged body over it, -1 none")        \
   X(i64, soil_queue, soil_nrow* soil_ncol, "work: the relaxation's queue of vertices")      \
-  X(f64, soil_box, (nk + 3) * 4, "work: vertex boxes of footprints and of the relaxation")  \
+  X(f64, soil_box, (3 * nk + 4) * 4, "work: vertex boxes of footprints, the relaxation's")  \
   X(i64, watch_told, nwatch, "1 once the geom's sinking was reported (watch.h)")            \
   X(f64, geom_pure, ng * 6, "work: pure wrench per geom about its body's CoM (sensor.h)")   \
   X(i64, geom_pure_pass, ng, "work: the pass (stats[0]) geom_pure[g] was computed in")

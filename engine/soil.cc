@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 
@@ -73,7 +74,9 @@ inline void Move(f64* soil, const Offsets& o, i64 i, i64 j, f64 q) {
 }
 
 // Moves material between free vertices i and j (heights hi, hj, intruder floors fi, fj [m],
-// +inf where none) so that they differ by at most lim [m]; returns the height moved.
+// +inf where none) if they differ by more than lim [m] (the repose slope's rise between them)
+// by more than kSlopeTolerance of it, so that they then differ by lim; returns the height
+// moved.
 //
 // Material enters the gap under a hovering intruder (floor f) only up to f, and only from a
 // neighbour that is also under an intruder or no higher than f: the intruder's side holds a
@@ -81,13 +84,14 @@ inline void Move(f64* soil, const Offsets& o, i64 i, i64 j, f64 q) {
 inline f64 SettlePair(f64* soil, const Offsets& o, i64 i, f64 hi, f64 fi, i64 j, f64 hj, f64 fj,
                       f64 lim) {
   f64 diff = hi - hj;
-  if (diff > lim + kSlopeSlack) {
+  const f64 start = lim + std::max(kSlopeSlack, kSlopeTolerance * lim);
+  if (diff > start) {
     if (fj < kInf && fi == kInf && hi > fj) return 0.0;
     f64 q = std::min(0.5 * (diff - lim), fj - hj);
     Move(soil, o, i, j, q);
     return q;
   }
-  if (-diff > lim + kSlopeSlack) {
+  if (-diff > start) {
     if (fi < kInf && fj == kInf && hj > fi) return 0.0;
     f64 q = std::min(0.5 * (-diff - lim), fi - hi);
     Move(soil, o, j, i, q);
@@ -107,13 +111,12 @@ struct Queue {
   // Flat index of the i-th waiting vertex (0: the oldest).
   i64 At(i64 q) const { return items[(((tail - count + q) % cap) + cap) % cap]; }
 
-  // Appends vertex i (row r, column c) unless it waits already; seen (4) grows over it.
-  void Push(i64* mark, i64 ncol, i64 i, i64 r, i64 c, f64* seen) {
-    if (mark[r * ncol + c] == kQueued) return;
+  // Appends vertex i unless it waits already.
+  void Push(i64* mark, i64 i) {
+    if (mark[i] == kQueued) return;
     items[tail] = i;
     tail = (tail + 1) % cap;
-    mark[r * ncol + c] = kQueued;
-    Union(seen, r, r, c, c);
+    mark[i] = kQueued;
     count++;
   }
 };
@@ -134,7 +137,7 @@ inline Vertex Free(const f64* grid, const f64* soil, i64 oh, const f64* floor, i
 // Settles free vertex i (row r, column c, height hi, floor fi) with its neighbour at
 // (r + a, c + b) (limit lim); if material moved, queues both.
 inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets& o,
-                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* seen, i64 i, i64 r,
+                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* top, i64 i, i64 r,
                        i64 c, f64 hi, f64 fi, i64 a, i64 b) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   i64 rr = r + a, cc = c + b;
@@ -145,8 +148,9 @@ inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets
   if (SettlePair(soil, o, i, hi, fi, j, vj.h, vj.f, lim) <= 0.0) {
     return;  // in repose, or capped by an intruder: settled
   }
-  queue.Push(mark, ncol, j, rr, cc, seen);
-  queue.Push(mark, ncol, i, r, c, seen);
+  *top = std::max({*top, grid[i] + soil[o.oh + i], grid[j] + soil[o.oh + j]});
+  queue.Push(mark, j);
+  queue.Push(mark, i);
 }
 
 // The eight neighbours of a vertex: row step, column step, index of the limit (x, y, diagonal).
@@ -259,6 +263,236 @@ Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
   return out;
 }
 
+namespace {
+
+// Orderable integer of a double (the integers sort as the doubles do), and back: the work
+// array is i64, and the cone's breakpoints are sorted there.
+inline i64 Key(f64 x) {
+  i64 b;
+  std::memcpy(&b, &x, 8);
+  return b ^ ((b >> 63) & INT64_MAX);
+}
+inline f64 Unkey(i64 k) {
+  i64 b = k ^ ((k >> 63) & INT64_MAX);
+  f64 x;
+  std::memcpy(&x, &b, 8);
+  return x;
+}
+
+// The rim of a deposit: vertex box (r0, r1, c0, c1) and the seed offsets there [m] (rows of
+// wcol doubles kept bit for bit in work[0..n); +inf where no rim vertex).
+struct Seeds {
+  i64 r0, r1, c0, c1, wcol, n;
+};
+
+// Lays height target [m] (volume / cell area) of loose material on the surface as a cone at
+// the repose slope around the seeds: every free vertex v near them rises to
+// min(max(h_v, H - tan(repose) d_v), floor_v), d_v its distance [m] to the nearest seed along
+// the grid's x, y and diagonal steps plus that seed's offset, H the height that conserves the
+// volume. The cone's slope between neighbours is the repose slope or less, so the surface
+// stays at repose wherever it was (no pair the cone raised is steeper than either the cone or
+// the old surface) and the relaxation has nothing to move but the intruders' walls. Works over
+// the seeds' box grown until the cone ends inside it; returns false (nothing laid) if that box
+// does not fit in work. Material beyond what the free vertices hold under intruders' floors is
+// counted in kStatUnplaced.
+bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Seeds& sd, f64 target,
+          f64 height_guess, f64* stats, i64* work, i64 nwork) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 t = prm[surface::kTanRepose];
+  const f64 dx = prm[kDx], dy = prm[kDy], dd = std::hypot(dx, dy);
+  auto getw = [&](i64 r, i64 c) {
+    f64 w;
+    std::memcpy(&w, work + (r - sd.r0) * sd.wcol + (c - sd.c0), 8);
+    return w;
+  };
+  // Room for a cone twice the guess's height: a box that is too small is done again larger.
+  i64 grow = static_cast<i64>(std::ceil(2.0 * height_guess / (t * std::min(dx, dy)))) + 2;
+  for (;;) {
+    i64 b0 = std::max<i64>(1, sd.r0 - grow), b1 = std::min<i64>(nrow - 2, sd.r1 + grow);
+    i64 a0 = std::max<i64>(1, sd.c0 - grow), a1 = std::min<i64>(ncol - 2, sd.c1 + grow);
+    i64 bcol = a1 - a0 + 1, nb = (b1 - b0 + 1) * bcol;
+    if (sd.n + 3 * nb > nwork) return false;
+    i64* dist = work + sd.n;  // distances [m] as doubles, then the breakpoints' keys
+    auto at = [&](i64 r, i64 c) -> i64* { return dist + (r - b0) * bcol + (c - a0); };
+    auto getd = [&](i64 r, i64 c) {
+      f64 x;
+      std::memcpy(&x, at(r, c), 8);
+      return x;
+    };
+    auto putd = [&](i64 r, i64 c, f64 x) { std::memcpy(at(r, c), &x, 8); };
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        bool in = r >= sd.r0 && r <= sd.r1 && c >= sd.c0 && c <= sd.c1;
+        putd(r, c, in ? getw(r, c) : kInf);
+      }
+    }
+    // Distance along the grid's steps between free vertices (a column an intruder presses on is
+    // a wall the material goes around): forward and backward passes until nothing changes
+    // (one pair on open ground; a few more around walls).
+    auto pressed = [&](i64 r, i64 c) {
+      i64 v = r * ncol + c;
+      return floor[v] < grid[v] + soil[kSoilHead + v] + kSoilContact;
+    };
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        if (pressed(r, c)) putd(r, c, kInf);
+      }
+    }
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (i64 r = b0; r <= b1; r++) {
+        for (i64 c = a0; c <= a1; c++) {
+          if (pressed(r, c)) continue;
+          f64 x0 = getd(r, c), x = x0;
+          if (c > a0) x = std::min(x, getd(r, c - 1) + dx);
+          if (r > b0) {
+            x = std::min(x, getd(r - 1, c) + dy);
+            if (c > a0) x = std::min(x, getd(r - 1, c - 1) + dd);
+            if (c < a1) x = std::min(x, getd(r - 1, c + 1) + dd);
+          }
+          if (x < x0) {
+            putd(r, c, x);
+            changed = true;
+          }
+        }
+      }
+      for (i64 r = b1; r >= b0; r--) {
+        for (i64 c = a1; c >= a0; c--) {
+          if (pressed(r, c)) continue;
+          f64 x0 = getd(r, c), x = x0;
+          if (c < a1) x = std::min(x, getd(r, c + 1) + dx);
+          if (r < b1) {
+            x = std::min(x, getd(r + 1, c) + dy);
+            if (c < a1) x = std::min(x, getd(r + 1, c + 1) + dd);
+            if (c > a0) x = std::min(x, getd(r + 1, c - 1) + dd);
+          }
+          if (x < x0) {
+            putd(r, c, x);
+            changed = true;
+          }
+        }
+      }
+    }
+    // Each free vertex holds clamp(H - a, 0, cap), a = h + t d, cap = floor - h: the volume is
+    // piecewise linear in H, rising by one at each a and falling by one at each a + cap. A
+    // bracket first (a pass per doubling), then the breakpoints below it, sorted.
+    f64 amin = kInf, room = 0.0;
+    bool open = false;
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        f64 cap = floor[v] - h;
+        f64 a = h + t * getd(r, c);
+        if (cap < kSoilContact || !std::isfinite(a)) continue;
+        amin = std::min(amin, a);
+        if (cap < kInf) {
+          room += cap;
+        } else {
+          open = true;
+        }
+      }
+    }
+    bool fits = open || room >= target;
+    f64 top = amin;
+    if (fits) {
+      f64 inc = std::max(2.0 * height_guess, 1e-9);
+      for (;;) {
+        f64 hb = amin + inc, vol = 0.0;
+        for (i64 r = b0; r <= b1; r++) {
+          for (i64 c = a0; c <= a1; c++) {
+            i64 v = r * ncol + c;
+            f64 h = grid[v] + soil[kSoilHead + v];
+            f64 cap = floor[v] - h;
+            if (cap < kSoilContact) continue;
+            f64 q = std::min(hb - (h + t * getd(r, c)), cap);
+            if (q > 0.0) vol += q;
+          }
+        }
+        if (vol >= target) break;
+        inc *= 2.0;
+      }
+      f64 hb = amin + inc;
+      i64* starts = dist + nb;
+      i64* ends = starts + nb;
+      i64 m = 0, p = 0;
+      for (i64 r = b0; r <= b1; r++) {
+        for (i64 c = a0; c <= a1; c++) {
+          i64 v = r * ncol + c;
+          f64 h = grid[v] + soil[kSoilHead + v];
+          f64 cap = floor[v] - h;
+          f64 a = h + t * getd(r, c);
+          if (cap < kSoilContact || !(a < hb)) continue;
+          starts[m++] = Key(a);
+          if (a + cap < hb) ends[p++] = Key(a + cap);
+        }
+      }
+      std::sort(starts, starts + m);
+      std::sort(ends, ends + p);
+      f64 held = 0.0, x = Unkey(starts[0]);
+      i64 slope = 0, i = 0, j = 0;
+      top = hb;
+      for (;;) {
+        f64 si = i < m ? Unkey(starts[i]) : hb, ej = j < p ? Unkey(ends[j]) : hb;
+        f64 next = std::min(si, ej);
+        if (slope > 0 && held + slope * (next - x) >= target) {
+          top = x + (target - held) / static_cast<f64>(slope);
+          break;
+        }
+        if (i >= m && j >= p) break;  // rounding: the bracket's top
+        held += slope * (next - x);
+        x = next;
+        if (i < m && si <= ej) {
+          slope++;
+          i++;
+        } else {
+          slope--;
+          j++;
+        }
+      }
+    }
+    // The cone must end inside the box (where it does not, a larger box): the box's border, but
+    // where it is the grid's, takes nothing.
+    bool spills = false;
+    bool whole = b0 == 1 && b1 == nrow - 2 && a0 == 1 && a1 == ncol - 2;
+    for (i64 r = b0; r <= b1 && !spills && !whole; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        bool border = (r == b0 && b0 > 1) || (r == b1 && b1 < nrow - 2) || (c == a0 && a0 > 1) ||
+                      (c == a1 && a1 < ncol - 2);
+        if (!border) continue;
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        if (fits && floor[v] - h >= kSoilContact && top > h + t * getd(r, c)) {
+          spills = true;
+          break;
+        }
+      }
+    }
+    if ((spills || !fits) && !whole) {
+      grow = 2 * grow + 1;
+      continue;
+    }
+    f64 laid = 0.0;
+    for (i64 r = b0; r <= b1; r++) {
+      for (i64 c = a0; c <= a1; c++) {
+        i64 v = r * ncol + c;
+        f64 h = grid[v] + soil[kSoilHead + v];
+        f64 cap = floor[v] - h;
+        if (cap < kSoilContact) continue;
+        f64 q = fits ? std::min(top - (h + t * getd(r, c)), cap) : cap;
+        if (q > 0.0 && std::isfinite(h + t * getd(r, c))) {
+          soil[kSoilHead + v] += q;
+          laid += q;
+        }
+      }
+    }
+    if (!fits) stats[kStatUnplaced] += (target - laid) * dx * dy;
+    return true;
+  }
+}
+
+}  // namespace
+
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
@@ -296,9 +530,48 @@ void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
       }
     }
     if (total > 0.0) {
-      f64 scale = vol / (prm[kDx] * prm[kDy]) / total;
+      // Seeds: each rim vertex, offset by the footprint's extent times how little of the motion
+      // points its way (a vertical press: none; ahead of a dragged blade: none; behind it: the
+      // whole extent, so the cone rises ahead of the motion and not behind).
+      f64 wmax = 0.0;
+      i64 nrim = 0;
       for (i64 r = r0; r <= r1; r++) {
-        for (i64 c = c0; c <= c1; c++) soil[kSoilHead + r * ncol + c] += get(r, c) * scale;
+        for (i64 c = c0; c <= c1; c++) {
+          wmax = std::max(wmax, get(r, c));
+          nrim += Rim(prm, grid, soil, floor, owner, r, c, k, open_sky) ? 1 : 0;
+        }
+      }
+      f64 extent = std::max((box[1] - box[0] + 1.0) * prm[kDy], (box[3] - box[2] + 1.0) * prm[kDx]);
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          bool rim = Rim(prm, grid, soil, floor, owner, r, c, k, open_sky);
+          put(r, c, rim ? (1.0 - get(r, c) / wmax) * extent : kInf);
+        }
+      }
+      // A guess of the cone's height: the volume as a ridge of triangular section along a rim
+      // of nrim cells, V = rim length x H^2 / (2 tan).
+      f64 cell = std::max(prm[kDx], prm[kDy]);
+      f64 guess = std::sqrt(2.0 * prm[surface::kTanRepose] * vol / (nrim * cell));
+      Seeds sd{r0, r1, c0, c1, wcol, (r1 - r0 + 1) * wcol};
+      f64 target = vol / (prm[kDx] * prm[kDy]);
+      if (Cone(prm, grid, soil, floor, sd, target, guess, stats, work, nrow * ncol)) return;
+      // No room for the cone's box in the work array: the rim takes it all, by weight.
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          f64 off = get(r, c);
+          if (off < kInf) put(r, c, wmax * (1.0 - off / extent));
+        }
+      }
+      f64 sum = 0.0;
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) sum += get(r, c) < kInf ? get(r, c) : 0.0;
+      }
+      f64 scale = target / sum;
+      for (i64 r = r0; r <= r1; r++) {
+        for (i64 c = c0; c <= c1; c++) {
+          f64 w = get(r, c);
+          if (w < kInf) soil[kSoilHead + r * ncol + c] += w * scale;
+        }
       }
       return;
     }
@@ -307,35 +580,39 @@ void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 }
 
 bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
-           f64* box, f64* seen, f64* stats) {
+           const f64* boxes, i64 nbox, f64* pending, f64* top, f64* stats) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
   Offsets o = OffsetsOf(prm);
   f64 t = prm[surface::kTanRepose];
   const f64 lim[3] = {t * prm[kDx], t * prm[kDy], t * std::hypot(prm[kDx], prm[kDy])};
-  i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]));
-  i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]));
-  i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]));
-  i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]));
-  if (r0 > r1 || c0 > c1) return true;
-  Union(seen, r0, r1, c0, c1);
-  i64 budget = kMaxSweeps * 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
   Queue q{queue, nrow * ncol};
-  // The sweep: each pair once.
-  for (i64 r = r0; r <= r1; r++) {
-    for (i64 c = c0; c <= c1; c++) {
-      Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
-      if (!vi.free) continue;
-      i64 i = r * ncol + c;
-      f64 hi = vi.h;
-      for (const auto& n : kSweep) {
-        SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
-                   n[1]);
-        hi = grid[i] + soil[o.oh + i];
+  // The sweeps: each pair of a box once.
+  i64 area = 0;
+  for (i64 b = 0; b < nbox; b++) {
+    const f64* box = boxes + 4 * b;
+    i64 r0 = std::max<i64>(1, static_cast<i64>(box[0]));
+    i64 r1 = std::min<i64>(nrow - 2, static_cast<i64>(box[1]));
+    i64 c0 = std::max<i64>(1, static_cast<i64>(box[2]));
+    i64 c1 = std::min<i64>(ncol - 2, static_cast<i64>(box[3]));
+    if (r0 > r1 || c0 > c1) continue;
+    area += (r1 - r0 + 1) * (c1 - c0 + 1);
+    for (i64 r = r0; r <= r1; r++) {
+      for (i64 c = c0; c <= c1; c++) {
+        Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
+        if (!vi.free) continue;
+        i64 i = r * ncol + c;
+        f64 hi = vi.h;
+        for (const auto& n : kSweep) {
+          SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0],
+                     n[1]);
+          hi = grid[i] + soil[o.oh + i];
+        }
       }
     }
   }
   // Then vertex by vertex wherever material moved.
-  i64 visits = 4 * (r1 - r0 + 1) * (c1 - c0 + 1);
+  i64 visits = 4 * area;
+  const i64 budget = kMaxSweeps * visits;
   while (q.count > 0 && visits < budget) {
     i64 i = q.At(0);
     q.count--;
@@ -345,45 +622,42 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
     if (!vi.free) continue;
     f64 hi = vi.h;
     for (const auto& n : kNeighbours) {
-      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, seen, i, r, c, hi, vi.f, n[0],
-                 n[1]);
+      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0], n[1]);
       hi = grid[i] + soil[o.oh + i];
     }
     visits += 8;
   }
+  stats[kStatVisits] += static_cast<f64>(visits);
+  pending[0] = pending[2] = static_cast<f64>(INT32_MAX);
+  pending[1] = pending[3] = -1.0;
   if (q.count == 0) return true;
   // What is left waits for the next update (its box).
-  f64 lo_r = nrow, hi_r = -1, lo_c = ncol, hi_c = -1;
   for (i64 k = 0; k < q.count; k++) {
     i64 i = q.At(k);
-    f64 r = i / ncol, c = i % ncol;
     mark[i] = -1;
-    lo_r = std::min(lo_r, r);
-    hi_r = std::max(hi_r, r);
-    lo_c = std::min(lo_c, c);
-    hi_c = std::max(hi_c, c);
+    Union(pending, static_cast<f64>(i / ncol), static_cast<f64>(i / ncol),
+          static_cast<f64>(i % ncol), static_cast<f64>(i % ncol));
   }
-  box[0] = lo_r;
-  box[1] = hi_r;
-  box[2] = lo_c;
-  box[3] = hi_c;
   stats[kStatUnrelaxed] += 1;
   return false;
 }
 
-void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
-            f64 time) {
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* boxes,
+            i64 nbox, f64 top, f64 time) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
-  f64 top = -kInf;
-  i64 r0 = std::max<i64>(0, static_cast<i64>(box[0]) - 1);
-  i64 r1 = std::min<i64>(nrow - 1, static_cast<i64>(box[1]) + 1);
-  i64 c0 = std::max<i64>(0, static_cast<i64>(box[2]) - 1);
-  i64 c1 = std::min<i64>(ncol - 1, static_cast<i64>(box[3]) + 1);
-  for (i64 r = r0; r <= r1; r++) {
-    for (i64 c = c0; c <= c1; c++) {
-      top = std::max(top, grid[r * ncol + c] + soil[kSoilHead + r * ncol + c]);
-      floor[r * ncol + c] = kInf;
-      owner[r * ncol + c] = -1;
+  for (i64 b = 0; b < nbox; b++) {
+    const f64* box = boxes + 4 * b;
+    if (box[0] > box[1] || box[2] > box[3]) continue;
+    i64 r0 = std::max<i64>(0, static_cast<i64>(box[0]) - 1);
+    i64 r1 = std::min<i64>(nrow - 1, static_cast<i64>(box[1]) + 1);
+    i64 c0 = std::max<i64>(0, static_cast<i64>(box[2]) - 1);
+    i64 c1 = std::min<i64>(ncol - 1, static_cast<i64>(box[3]) + 1);
+    for (i64 r = r0; r <= r1; r++) {
+      for (i64 c = c0; c <= c1; c++) {
+        top = std::max(top, grid[r * ncol + c] + soil[kSoilHead + r * ncol + c]);
+        floor[r * ncol + c] = kInf;
+        owner[r * ncol + c] = -1;
+      }
     }
   }
   soil[surface::kSoilZoff] = std::max(soil[surface::kSoilZoff], top - prm[surface::kZmax]);

@@ -19,16 +19,21 @@
 //    compacted level (c = h = floor) and remembers as its depth reference the larger of the old
 //    surface h and the old c + p (Chrono SCM's sinkage memory plays this role in Bekker-Wong
 //    soil).
-// 3. Deposition (Deposit): each intruder's excavated volume is spread over the rim of its
-//    footprint (the unoccupied vertices next to it), weighted towards the horizontal motion of
-//    the footprint's centre: a vertical intrusion raises an even rim, a horizontal one
-//    bulldozes ahead of it. It lands as loose material (h grows, c and p unchanged).
+// 3. Deposition (Deposit): each intruder's excavated volume is laid as a cone at the repose
+//    slope around the rim of its footprint (the unoccupied vertices next to it): a vertex at
+//    distance d from the rim (along the grid's steps, around pressed columns) rises to
+//    max(h, H - tan(repose) d), H conserving the volume. Rim vertices are offset by the
+//    footprint's extent times how little of its horizontal motion points their way: a vertical
+//    intrusion raises an even ring, a horizontal one bulldozes ahead of it. The cone is no
+//    steeper than the repose slope, so ground that was at repose stays so. It lands as loose
+//    material (h grows, c and p unchanged).
 // 4. Relaxation (Relax): wherever two neighbouring vertices (along x, y and both diagonals)
-//    differ by more than tan(repose) times their distance, material moves from the higher to
-//    the lower one (half the excess, so the pair ends exactly at the repose slope): one sweep
-//    over the box of recent activity, then vertex by vertex wherever material moved, never into
-//    or out of a column an intruder presses on or the grid's edge ring, and into the gap under
-//    a hovering intruder only up to its floor.
+//    differ by more than tan(repose) times their distance (by more than kSlopeTolerance of
+//    that), material moves from the higher to the lower one (half the excess, so the pair ends
+//    exactly at the repose slope): one sweep over each intruder's box (where it is and was),
+//    then vertex by vertex wherever material moved, never into or out of a column an intruder
+//    presses on or the grid's edge ring, and into the gap under a hovering intruder only up to
+//    its floor.
 //
 // Every move subtracts from one vertex exactly what it adds to another, and the edge ring never
 // changes, so the volume under the surface (dx dy times the sum of h over the vertices) is
@@ -50,28 +55,37 @@ namespace mjrft::soil {
 // Barycentric slack of the rasterisation: a vertex on an edge shared by two triangles is
 // covered by both, whatever the rounding.
 constexpr f64 kEdgeSlack = 1e-12;
-// Relaxation work per update at most, in sweeps of the update's box (Relax: the pair visits of
-// this many sweeps); what is left continues at the next update (counted in kStatUnrelaxed). A
-// pile's excess travels down its slope diffusively, so a growing berm would take ~its width
-// squared in sweeps to settle exactly at every step; the budget bounds a step's cost and lets
-// the slope settle over the next steps.
+// Relaxation work per update at most, in sweeps of the update's boxes (Relax: the pair visits
+// of this many sweeps); what is left continues at the next update (counted in kStatUnrelaxed).
+// A wall's excess travels down its slope diffusively, so a deep hole's collapse would take ~its
+// width squared in sweeps to settle exactly at one step; the budget bounds a step's cost and
+// lets the slope settle over the next steps.
 constexpr int kMaxSweeps = 16;
-// A neighbouring pair may exceed the repose slope by this much [m] before material moves (1 um:
-// a thousandth of a 1 mm grain).
+// A neighbouring pair may be steeper than the repose slope by this fraction of its rise, or by
+// kSlopeSlack if that is more, before material moves (then it moves until the pair is at the
+// repose slope): 1 % of tan(repose), 0.2 deg at 23 deg, inside the scatter of measured angles
+// of repose (+-1 deg and more between tests of one medium). A fraction of the slope, not a
+// height, so that the relaxation stops at the same angle on every cell size; it sets how far a
+// small excess travels down a slope standing at repose, and with it the relaxation's work.
+constexpr f64 kSlopeTolerance = 0.01;
+// The least excess [m] that moves material (1 um: a thousandth of a 1 mm grain; rounding must
+// not keep a pair moving).
 constexpr f64 kSlopeSlack = 1e-6;
 // Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per mjData.
 constexpr i64 kMaxVertices = 2000000;
 // Slots of soil_stats: updates, volume excavated [m^3], volume that found no rim [m^3], updates
-// whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring.
+// whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring,
+// pairs of neighbouring vertices the relaxation compared (its work).
 enum SoilStat {
   kStatUpdates,
   kStatExcavated,
   kStatUnplaced,
   kStatUnrelaxed,
   kStatRasterised,
-  kStatEdge
+  kStatEdge,
+  kStatVisits
 };
-static_assert(kStatEdge + 1 == kNSoilStats, "soil_stats slots");
+static_assert(kStatVisits + 1 == kNSoilStats, "soil_stats slots");
 // owner's value for a vertex waiting in the relaxation's queue (deposition is done by then, and
 // Finish clears the owners).
 constexpr i64 kQueued = -2;
@@ -103,38 +117,43 @@ struct Cut {
 Cut Excavate(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, const f64* twist, f64 zlo, f64* stats);
 
-// Spreads volume vol [m^3] of intruder k over the rim of its footprint (the vertices next to
+// Lays volume vol [m^3] of intruder k around the rim of its footprint (the vertices next to
 // those it presses on, inside box grown by one vertex, with no intruder over them; failing
-// those, the ones under an intruder but free of contact), weighted towards the horizontal
-// direction of v (3) [m/s] from the footprint's centre (mx, my) [m]: weight (1 - s) +
-// 2 s max(0, cos), s = |v_xy| / (|v_xy| + |v_z|), so a vertical intrusion raises an even rim
-// and a horizontal one piles ahead. Loose material: h grows, c and p stay. What finds no rim
-// is counted (kStatUnplaced). work (nrow * ncol, the relaxation's queue, free until then)
-// holds the rim's weights as doubles while they are summed and spent.
+// those, the ones under an intruder but free of contact) as a cone at the repose slope (step 3
+// above): each rim vertex is offset by the footprint's extent times 1 - w / max w, w = (1 - s) +
+// 2 s max(0, cos) the weight of its direction from the footprint's centre (mx, my) [m] against
+// the horizontal direction of v (3) [m/s], s = |v_xy| / (|v_xy| + |v_z|). Vertices under an
+// intruder take material up to its floor; what finds no room is counted (kStatUnplaced). Loose
+// material: h grows, c and p stay. work (nrow * ncol, the relaxation's queue, free until then)
+// holds the rim's offsets and the cone's distances and breakpoints; a cone whose box needs more
+// falls back to the rim alone, by weight.
 void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
              const f64* box, i64 k, f64 vol, f64 mx, f64 my, const f64* v, f64* stats, i64* work);
 
-// Relaxes the surface from the vertices of box until no pair of free neighbouring vertices is
-// steeper than the angle of repose, or the work budget is spent; returns true if it converged.
+// Relaxes the surface from the vertices of the nbox vertex boxes (nbox x 4) until no pair of
+// free neighbouring vertices is steeper than the angle of repose, or the work budget is spent;
+// returns true if it converged.
 //
-// One sweep over the box, then a queue (first in, first out) of the vertices that moved: a
-// vertex taken from it is settled against its eight neighbours, and every vertex that moved
-// (it, and each neighbour it gave to or took from) joins the queue again, so the work follows
-// the material, wherever the box's corners are (three legs far apart cost three footprints, not
-// the box spanning them). A pair of which neither vertex moved since it was in repose is still
-// in repose. The budget is the pair visits of kMaxSweeps sweeps of the box. On return box holds
-// the queue's bounding box if it did not empty (the slopes left unrelaxed), and seen (4) has
-// grown over every vertex visited. mark (nrow x ncol): owner, which marks the waiting vertices
-// kQueued (and is cleared by Finish); queue (nrow * ncol): work space for the queue. A vertex
-// an intruder presses on neither gives nor takes (the gap under a hovering one fills up to its
+// One sweep over each box (the footprints' neighbourhoods: their total area, not the box
+// spanning them), then a queue (first in, first out) of the vertices that moved: a vertex taken
+// from it is settled against its eight neighbours, and every vertex that moved (it, and each
+// neighbour it gave to or took from) joins the queue again, so the work follows the material
+// (six legs far apart cost six footprints). A pair of which neither vertex moved since it was in
+// repose is still in repose. The budget is the pair visits of kMaxSweeps sweeps of the boxes
+// (counted in kStatVisits). On return pending (4) holds the queue's bounding box if it did not
+// empty (the slopes left unrelaxed), else an empty box; top [m] has grown over every height
+// that material moved into. mark (nrow x ncol): owner, which marks the waiting vertices kQueued
+// (and is cleared by Finish); queue (nrow * ncol): work space for the queue. A vertex an
+// intruder presses on neither gives nor takes (the gap under a hovering one fills up to its
 // floor).
 bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
-           f64* box, f64* seen, f64* stats);
+           const f64* boxes, i64 nbox, f64* pending, f64* top, f64* stats);
 
-// Closes an update: raises the ceiling (soil[kSoilZoff]) over box, clears floor and owner there
-// (and one vertex around it), and records the time [s] of the configuration followed.
-void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* box,
-            f64 time);
+// Closes an update: clears floor and owner over the nbox vertex boxes (nbox x 4: the
+// footprints; and one vertex around each), raises the ceiling (soil[kSoilZoff]) to the highest
+// of top [m] and the surface there, and records the time [s] of the configuration followed.
+void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* boxes,
+            i64 nbox, f64 top, f64 time);
 
 }  // namespace mjrft::soil
 

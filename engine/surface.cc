@@ -27,15 +27,6 @@ f64 GridHeight(const f64* prm, const f64* grid, f64 x, f64 y) {
   return h00 + fv * (h01 - h00) + fu * (h11 - h01);
 }
 
-Cell CellOf(const f64* prm, f64 x, f64 y) {
-  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
-  f64 u = std::min(std::max((x - prm[kX0]) / prm[kDx], 0.0), ncol - 1.0);
-  f64 v = std::min(std::max((y - prm[kY0]) / prm[kDy], 0.0), nrow - 1.0);
-  i64 c = std::min(static_cast<i64>(u), ncol - 2);
-  i64 r = std::min(static_cast<i64>(v), nrow - 2);
-  return {r, c, u - c, v - r, u - c >= v - r};
-}
-
 void SoilVertex(const f64* prm, const f64* grid, const f64* soil, i64 r, i64 c, f64 out[3]) {
   i64 ncol = static_cast<i64>(prm[kNcol]);
   i64 n = ncol * static_cast<i64>(prm[kNrow]);
@@ -70,25 +61,12 @@ Levels SoilLevels(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y
 
 }  // namespace
 
-f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
-  Levels at = SoilLevels(prm, grid, soil, x, y);
-  if (z >= at.h + kSoilContact) return 0.0;
-  f64 depth = std::max(at.h - z, 0.0);
-  if (z < at.c + kSoilContact) depth += at.p;
-  return depth;
-}
-
 f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y) {
   f64 kind = prm[kKind];
   if (kind == kFlat) return prm[kZ0];
   if (kind == kPlane) return prm[kZ0] + prm[kGx] * x + prm[kGy] * y;
   if (kind == kGrid) return GridHeight(prm, grid, x, y);
   return SoilLevels(prm, grid, soil, x, y).h;
-}
-
-f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
-  if (prm[kKind] == kSoil) return SoilDepth(prm, grid, soil, x, y, z);
-  return Height(prm, grid, soil, x, y) - z;
 }
 
 f64 Ceiling(const f64* prm, const f64* soil) {

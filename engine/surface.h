@@ -11,6 +11,8 @@
 #ifndef MJRFT_ENGINE_SURFACE_H_
 #define MJRFT_ENGINE_SURFACE_H_
 
+#include <algorithm>
+
 #include "tables.h"
 
 namespace mjrft::surface {
@@ -40,14 +42,8 @@ f64 GridHeight(const f64* prm, const f64* grid, f64 x, f64 y);
 // (h, c, p) [m] at vertex (r, c) of a deforming grid: surface, compacted level, memory.
 void SoilVertex(const f64* prm, const f64* grid, const f64* soil, i64 r, i64 c, f64 out[3]);
 
-// Resisting depth [m] of the point (x, y, z) under a deforming surface (<= 0: not in it).
-f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z);
-
 // Surface height [m] at the horizontal position (x, y) [m].
 f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y);
-
-// Resisting depth [m] of the world point (x, y, z); <= 0 outside the medium.
-f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z);
 
 // An upper bound [m] of the height below which a point can be in the medium anywhere: the flat
 // height, a grid's highest point, or +inf for a plane.
@@ -63,13 +59,51 @@ struct Cell {
   f64 fu, fv;
   bool upper;
 };
-Cell CellOf(const f64* prm, f64 x, f64 y);
+inline Cell CellOf(const f64* prm, f64 x, f64 y) {
+  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+  f64 u = std::min(std::max((x - prm[kX0]) / prm[kDx], 0.0), ncol - 1.0);
+  f64 v = std::min(std::max((y - prm[kY0]) / prm[kDy], 0.0), nrow - 1.0);
+  i64 c = std::min(static_cast<i64>(u), ncol - 2);
+  i64 r = std::min(static_cast<i64>(v), nrow - 2);
+  return {r, c, u - c, v - r, u - c >= v - r};
+}
 
 // Linear interpolation over a cell's triangle: a00 at (c, r), a10 at (c + 1, r), a01 at
 // (c, r + 1), a11 at (c + 1, r + 1).
 inline f64 Tri(f64 a00, f64 a10, f64 a01, f64 a11, f64 fu, f64 fv, bool upper) {
   if (upper) return a00 + fu * (a10 - a00) + fv * (a11 - a10);
   return a00 + fv * (a01 - a00) + fu * (a11 - a01);
+}
+
+// Resisting depth [m] of the point (x, y, z) under a deforming surface: (h + p) - z below the
+// compacted level c, h - z above it (negative above the surface, as under a fixed grid, so that
+// the force pass drops an element clear of it after one look-up and clips one the surface
+// crosses where it crosses). The levels are interpolated only as far as the point needs: most
+// points the force pass asks about lie above the surface, and most below it above c. Inline:
+// the force pass asks for every element and corner near the ground.
+inline f64 SoilDepth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+  Cell k = CellOf(prm, x, y);
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  i64 n = ncol * static_cast<i64>(prm[kNrow]);
+  i64 a = k.r * ncol + k.c, b = a + 1, c = a + ncol, e = c + 1;
+  const f64* oh = soil + kSoilHead;
+  f64 g00 = grid[a], g10 = grid[b], g01 = grid[c], g11 = grid[e];
+  f64 h = Tri(g00 + oh[a], g10 + oh[b], g01 + oh[c], g11 + oh[e], k.fu, k.fv, k.upper);
+  if (z >= h + kSoilContact) return h - z;
+  f64 depth = std::max(h - z, 0.0);
+  const f64* oc = oh + n;
+  f64 lc = Tri(g00 + oc[a], g10 + oc[b], g01 + oc[c], g11 + oc[e], k.fu, k.fv, k.upper);
+  if (z < lc + kSoilContact) {
+    const f64* op = oc + n;
+    depth += Tri(op[a], op[b], op[c], op[e], k.fu, k.fv, k.upper);
+  }
+  return depth;
+}
+
+// Resisting depth [m] of the world point (x, y, z); <= 0 outside the medium.
+inline f64 Depth(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y, f64 z) {
+  if (prm[kKind] == kSoil) return SoilDepth(prm, grid, soil, x, y, z);
+  return Height(prm, grid, soil, x, y) - z;
 }
 
 }  // namespace mjrft::surface

@@ -26,7 +26,7 @@ constexpr int kPatchSize = 19;  // elem_patch row (quadrature.h)
 constexpr int kRk4Head = 2;     // rk4 record head (rk4.h)
 constexpr int kRk4Body = 49;    // rk4 record per tagged body
 constexpr int kNStats = 6;      // stats: calls, evaluated, acting, stuck, slipping, implicit
-constexpr int kNSoilStats = 6;  // soil_stats (soil.h)
+constexpr int kNSoilStats = 7;  // soil_stats (soil.h)
 
 // Views of the static tables (fields.h); the plugin instance or the test owns the storage.
 struct Tables {

@@ -11,6 +11,7 @@ import pytest
 from mujoco.batch import Batch
 
 import mjrft
+from mjrft.core import soil as rules
 from mjrft.field import GranularField, SceneError
 
 ZETA = 3.3e5  # glass_beads [N/m^3]; alpha_z(0, pi/2) = 1 for a plate pushed straight down
@@ -22,8 +23,9 @@ VOLUME_RTOL = 1e-9
 # within one cell of its edge, where the depth interpolates towards the rim the plate raised
 # (its overburden): measured +0.7 % on a 5 cm plate 8 mm deep at a 2.5 mm cell.
 FRESH_RTOL = 0.015
-# A relaxed pair of neighbours may exceed the repose slope by soil.SLOPE_SLACK (1 um).
-SLOPE_ATOL = 2e-6
+# A relaxed pair of neighbours may be steeper than the repose slope by SLOPE_TOLERANCE of its
+# rise (or SLOPE_SLACK, 1 um, if more), plus rounding.
+SLOPE_RTOL = rules.SLOPE_TOLERANCE + 1e-6
 
 FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
 <custom><text name="mjrft:material" data="glass_beads"/>
@@ -54,9 +56,9 @@ def drive(m, f, d, targets, steps=2, actuator=0):
 
 
 def steepest_free_excess(soil, keep: np.ndarray | None = None) -> float:
-    """Largest amount [m] by which two neighbours (along x, y, diagonals) differ beyond the
-    repose slope, over the interior (the edge ring never changes) and, if given, pairs of
-    vertices where keep (nrow, ncol) is True."""
+    """Largest amount by which two neighbours (along x, y, diagonals) differ beyond the repose
+    slope, as a fraction of the slope's rise between them, over the interior (the edge ring never
+    changes) and, if given, pairs of vertices where keep (nrow, ncol) is True."""
     h = soil.height[1:-1, 1:-1]
     k = np.ones(soil.height.shape, bool) if keep is None else keep
     k = k[1:-1, 1:-1]
@@ -68,7 +70,7 @@ def steepest_free_excess(soil, keep: np.ndarray | None = None) -> float:
         (h[1:, 1:], h[:-1, :-1], k[1:, 1:], k[:-1, :-1], np.sqrt(2.0)),
         (h[1:, :-1], h[:-1, 1:], k[1:, :-1], k[:-1, 1:], np.sqrt(2.0)),
     ):
-        excess = np.abs(a - b) - t * dx * n
+        excess = (np.abs(a - b) - t * dx * n) / (t * dx * n)
         worst = max(worst, float(excess[ka & kb].max()))
     return worst
 
@@ -109,8 +111,12 @@ def test_updating_every_k_steps_does_k_times_fewer_updates_for_the_same_footprin
     # The same cut (the floor follows the deepest update, measured 5.2e-4 relative) ...
     assert out[5][2]["excavated"] == pytest.approx(out[1][2]["excavated"], rel=2e-3)
     assert out[5][1].min() == pytest.approx(out[1][1].min(), abs=2e-3 * CELL)  # 4.0 um
-    # ... relaxed a fifth as often: the rim differs by at most 0.24 mm (0.10 cell).
-    np.testing.assert_allclose(out[5][1], out[1][1], atol=0.15 * CELL)
+    # ... relaxed a fifth as often: the rim differs by at most 0.24 mm (0.10 cell) but at a few
+    # vertices, where a slope that stopped inside soil.SLOPE_TOLERANCE on one history moved on
+    # the other (measured: 4 of 2401 vertices, up to 0.53 mm).
+    diff = np.abs(out[5][1] - out[1][1])
+    assert np.mean(diff > 0.15 * CELL) <= 0.005
+    assert diff.max() <= 0.25 * CELL
 
 
 def test_a_foot_pressed_again_into_its_footprint_feels_fresh_sand_only_at_its_floor():
@@ -160,8 +166,72 @@ def test_a_withdrawn_rod_leaves_a_hole_that_slumps_to_the_angle_of_repose():
     drive(m, f, d, np.linspace(-0.02, 0.05, 100))
     drive(m, f, d, np.full(60, 0.05))  # out of the ground: the hole relaxes
     assert f.soil(d).height[inside].min() > bottom + 0.005  # the walls slumped in
-    assert steepest_free_excess(f.soil(d)) <= SLOPE_ATOL
+    assert steepest_free_excess(f.soil(d)) <= max(SLOPE_RTOL, rules.SLOPE_SLACK / 0.002)
     assert abs(f.soil(d).volume()) <= VOLUME_RTOL * f.soil(d).counters["excavated"]
+
+
+def test_a_hole_relaxes_in_a_state_restored_into_a_fresh_mjdata():
+    """The rod pressed in, its state restored into a new MjData (whose work arrays never saw an
+    update) and the rod taken out of the ground in one step: the update relaxes the hole from
+    the footprints' box the state keeps, as the MjData that made it would."""
+    m, f, d = load(ROD)
+    drive(m, f, d, np.linspace(0.0, -0.02, 150))
+    what = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    saved = np.empty(mujoco.mj_stateSize(m, what))
+    mujoco.mj_getState(m, d, saved, what)
+    fresh = mujoco.MjData(m)
+    mujoco.mj_setState(m, fresh, saved, what)
+    bottom = fresh.qpos[0]
+    fresh.qpos[0] = 0.2  # far above the ground at the next update
+    fresh.ctrl[0] = 0.2
+    mujoco.mj_step(m, fresh)
+    soil = f.soil(fresh)
+    x, y = np.meshgrid(soil.x, soil.y)
+    inside = np.hypot(x, y) < 0.006 - 0.001
+    assert soil.height[inside].min() > bottom + 0.005  # the walls slumped in
+    assert abs(soil.volume()) <= VOLUME_RTOL * soil.counters["excavated"]
+
+
+TWO_FEET = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<numeric name="mjrft:region" data="-0.08 -0.08 -0.1 0.08 0.08 0.05"/>
+<numeric name="mjrft:deform_cell" data="0.0025"/>
+<tuple name="mjrft:intruders"><element objtype="body" objname="a" prm="300"/>
+<element objtype="body" objname="b" prm="300"/></tuple></custom>
+<worldbody>
+<body name="a" pos="-0.05 -0.05 0.005"><joint name="za" type="slide" axis="0 0 1"/>
+<geom type="box" size="0.006 0.006 0.005" mass="0.1"/></body>
+<body name="b" pos="0.05 0.05 0.005"><joint name="zb" type="slide" axis="0 0 1"/>
+<geom type="box" size="0.006 0.006 0.005" mass="0.1"/></body></worldbody>
+<actuator><position joint="za" kp="1e4" kv="200"/><position joint="zb" kp="1e4" kv="200"/>
+</actuator></mujoco>"""
+
+
+def test_relaxation_work_follows_the_feet_not_the_box_between_them():
+    """Two feet 14 cm apart (diagonally) pressed 8 mm and lifted: the relaxation compares pairs
+    around each foot (soil counters' "visits"), far fewer than one sweep of the box spanning
+    both feet would; the cut volume is laid at the repose slope, so each update's work is
+    little more than its sweeps, and the slopes end at repose."""
+    m, f, d = load(TWO_FEET)
+    targets = np.concatenate([np.linspace(0.0, -0.008, 60), np.linspace(-0.008, 0.01, 30)])
+    for tgt in targets:
+        d.ctrl[:] = tgt
+        for _ in range(2):
+            mujoco.mj_step(m, d)
+    soil = f.soil(d)
+    c = soil.counters
+    cell = soil.x[1] - soil.x[0]
+    # A foot's box: its 12 mm side plus one vertex around it, where it is and was.
+    foot = (round(0.012 / cell) + 3) ** 2
+    spanning = (round((0.1 + 0.012) / cell) + 3) ** 2  # the box over both feet
+    assert c["visits"] / c["updates"] < 0.1 * 4 * spanning
+    # Sweeps of both feet's boxes (4 pairs a vertex) and the walls freed as the feet rose:
+    # measured 393 pair visits per update, 0.77 sweeps' worth (without the cone: 1155; with one
+    # box over both feet: 16,400).
+    assert c["visits"] / c["updates"] < 2 * 4 * 2 * foot
+    assert c["unrelaxed"] == 0
+    assert steepest_free_excess(soil) <= SLOPE_RTOL
+    assert abs(soil.volume()) <= VOLUME_RTOL * c["excavated"]
 
 
 BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
@@ -192,7 +262,7 @@ def test_a_dragged_blade_pushes_a_pile_ahead_and_leaves_a_trench_behind():
     x2, y2 = np.meshgrid(soil.x, soil.y)
     free = (np.abs(x2 - d.qpos[0]) > 0.006 + 2 * CELL) | (np.abs(y2) > 0.02 + 2 * CELL)
     assert d.qvel[0] > 0.05  # still moving: its own walls stand, the rest is relaxed
-    assert steepest_free_excess(soil, free) <= 0.1 * CELL * soil.tan_repose
+    assert steepest_free_excess(soil, free) <= 0.1
     assert abs(soil.volume()) <= VOLUME_RTOL * soil.counters["excavated"]
 
 

@@ -102,7 +102,7 @@ def test_heights_and_depths_follow_the_stated_rules():
     """surface.height and surface.depth (the engine's functions) on every kind of surface
     against mjrft.core.surface's rules written plainly: vertical depth below a flat surface, a
     plane, a grid linear over each cell's two triangles (the edge beyond); under a deforming
-    grid (h + p) - z below the compacted level c, h - z between c and h, 0 above h. Both do the
+    grid (h + p) - z below the compacted level c, h - z between c and h and above h. Both do the
     same operations in the same order (the engine is built without contraction to fused
     multiply-adds), so they agree to the last bit."""
     rng = np.random.default_rng(8)
@@ -132,7 +132,7 @@ def test_heights_and_depths_follow_the_stated_rules():
     c = _over_triangles(prm, dune.grid + dc, x, y)
     p = _over_triangles(prm, mem, x, y)
     touch = surface.SOIL_CONTACT
-    want = np.where(z >= h + touch, 0.0, np.maximum(h - z, 0.0) + np.where(z < c + touch, p, 0.0))
+    want = np.where(z >= h + touch, h - z, np.maximum(h - z, 0.0) + np.where(z < c + touch, p, 0.0))
     assert np.any(z < c) and np.any((z >= c) & (z < h)) and np.any(z > h)  # every case
     np.testing.assert_array_equal(surface.height(prm, dune.grid, block, x, y), h)
     np.testing.assert_array_equal(surface.depth(prm, dune.grid, block, x, y, z), want)

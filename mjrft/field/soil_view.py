@@ -28,8 +28,9 @@ class Soil:
     @property
     def counters(self) -> dict[str, float]:
         """Work of this MjData's updates so far (``mjrft.core.soil.SOIL_STATS``): updates,
-        excavated and unplaced volume [m^3], updates left unrelaxed, triangles rasterised,
-        footprint vertices on the grid's edge ring."""
+        excavated and unplaced volume [m^3], updates whose relaxation spent its budget before
+        repose ("unrelaxed"), triangles rasterised, footprint vertices on the grid's edge ring,
+        pairs of neighbouring vertices the relaxation compared ("visits")."""
         return {k: float(v) for k, v in zip(soil.SOIL_STATS, self._counters, strict=True)}
 
     @property

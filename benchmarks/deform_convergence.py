@@ -1,0 +1,76 @@
+"""Convergence of the deforming ground with its cell: a plate resting under its weight and a
+dragged blade, at successive halvings of the cell, with the observed order.
+
+Run: python benchmarks/deform_convergence.py [--cells 0.01 0.005 0.0025 0.00125]
+Plate: a 5 cm square plate of 0.84 kg on glass beads dropped from 1 mm above the surface and
+left 0.6 s to settle; its rest depth [m] (and on the pristine surface, for reference). Blade: as in
+benchmarks/deform_blade.py (4 cm wide, 15 mm deep, 10 cm at 0.1 m/s), its mean drag [N] over
+the second half. For each: the value per cell, the change between successive cells, the observed
+order p = log2(change / next change) of the last three cells and the Richardson estimate of the
+cell-free value, with each cell's error against it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import mujoco
+import numpy as np
+from deform_blade import drag
+
+import mjrft
+
+PLATE = """<mujoco><option timestep="0.001" integrator="implicitfast"/>
+<custom><text name="mjrft:material" data="glass_beads"/>
+<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
+{cell}
+<tuple name="mjrft:intruders"><element objtype="geom" objname="plate" prm="400"/></tuple></custom>
+<worldbody><body name="plate" pos="0 0 0.006"><joint name="z" type="slide" axis="0 0 1"/>
+<geom name="plate" type="box" size="0.025 0.025 0.005" mass="0.84"/></body></worldbody>
+</mujoco>"""
+SETTLE_S = 0.6
+
+
+def plate_depth(cell: float | None) -> float:
+    """Rest depth [m] of the plate's bottom below the original surface after SETTLE_S."""
+    tag = f'<numeric name="mjrft:deform_cell" data="{cell}"/>' if cell else ""
+    model = mjrft.load_model(PLATE.format(cell=tag))
+    data = mujoco.MjData(model)
+    while data.time < SETTLE_S:
+        mujoco.mj_step(model, data)
+    return -(data.qpos[0] + 0.006 - 0.005)  # bottom: 5 mm below the body origin
+
+
+def blade_drag(cell: float | None) -> float:
+    """Mean drag [N] of the blade over the second half of its 10 cm."""
+    return float(drag(cell, 0.1)["f"].mean())
+
+
+def table(name: str, unit: str, scale: float, cells: list[float], values: list[float],
+          pristine: float) -> None:  # fmt: skip
+    """Prints values per cell, the observed order and the errors against Richardson's value."""
+    v = np.array(values)
+    change = np.abs(np.diff(v))
+    p = math.log2(change[-2] / change[-1]) if change[-1] > 0 else math.inf
+    limit = v[-1] + (v[-1] - v[-2]) / (2.0**p - 1.0) if math.isfinite(p) else v[-1]
+    print(f"{name} (pristine surface: {pristine * scale:.3f} {unit})")
+    for c, x in zip(cells, v, strict=True):
+        print(f"  cell {c * 1e3:g} mm: {x * scale:.4f} {unit}, error {abs(x - limit) * scale:.4f} "
+              f"{unit} ({abs(x - limit) / abs(limit):.2%})")  # fmt: skip
+    print(f"  observed order {p:.2f}; cell-free estimate {limit * scale:.4f} {unit}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cells", type=float, nargs="+", default=[0.01, 0.005, 0.0025, 0.00125])
+    args = ap.parse_args()
+    if len(args.cells) < 3:
+        ap.error("--cells needs at least three sizes for an observed order")
+    cells = sorted(args.cells, reverse=True)
+    table("plate rest depth", "mm", 1e3, cells, [plate_depth(c) for c in cells], plate_depth(None))
+    table("blade drag", "N", 1.0, cells, [blade_drag(c) for c in cells], blade_drag(None))
+
+
+if __name__ == "__main__":
+    main()
