@@ -2,9 +2,10 @@
 
 Builds the engine with ``-DMJRFT_SANITIZE=ON`` and steps a scene of every stage (free bodies
 under each integrator, a mechanism standing and walking, a height field, the deforming ground,
-queries from Python) in a child process that preloads the sanitizer runtime; any report fails
-it. Slow (a second build of the engine): run by ``.ci/run`` as its own step, or with
-``MJRFT_SANITIZE=1 python -m pytest tests/test_engine_sanitize.py``.
+the sensor plugin and the sinking check, queries from Python) in a child process that preloads
+the sanitizer runtime; any report fails it. Slow (a second build of the engine): run by
+``.ci/run`` as its own step, or with ``MJRFT_SANITIZE=1 python -m pytest
+tests/test_engine_sanitize.py``.
 """
 
 from __future__ import annotations
@@ -48,6 +49,18 @@ for integrator in ("Euler", "RK4", "implicitfast"):
 for name in ("hexapod_sand", "dune_drop", "wheel_rig", "plate_rig", "root_circumnutation"):
     run(mjrft.load_model(resolve_model(name)), 150)
 run(mjrft.load_model(resolve_model("wheel_rig"), deform_cell=0.005), 200)
+# the sensor plugin (12 sensors) and the sinking check (untagged thighs and trunk)
+import warnings
+from mjrft.envs import go2_sand
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    go2 = mjrft.load_model(go2_sand.build_spec())
+    data = mujoco.MjData(go2)
+    mujoco.mj_resetDataKeyframe(go2, data, 0)
+    for _ in range(150):
+        data.ctrl[:] = go2_sand.trot_ctrl(data.time)
+        mujoco.mj_step(go2, data)
+    assert np.all(np.isfinite(data.sensordata)) and data.sensordata.any()
 from mjrft.core import engine
 print("sanitized scenes ok with", engine.library_path())
 """
