@@ -431,7 +431,7 @@ class WarpField:
         gr.owner = wp.array(np.full((nworld, n), -1, dtype=np.int32), dtype=int, device=dev)
         gr.queue = wp.zeros((nworld, n), dtype=int, device=dev)
         gr.work = wp.zeros((nworld, n), dtype=f64, device=dev)
-        gr.box = wp.zeros((nworld, 4 * (self.ntbody + 3)), dtype=f64, device=dev)
+        gr.box = wp.zeros((nworld, 4 * soil.box_rows(self.ntbody)), dtype=f64, device=dev)
         gr.stats = wp.zeros((nworld, soil.N_STATS), dtype=f64, device=dev)
         gr.status = wp.array(np.full(nworld, -1, dtype=np.int32), dtype=int, device=dev)
         vert = np.asarray(fm["elem_vert"], dtype=np.float64).reshape(-1, 9)
@@ -458,7 +458,7 @@ class WarpField:
             per += 8 * sum(_mech_sizes(self.model.nv, self.ntbody, self.model.nu).values())
         if self.deforms:
             n = int(self.setup.tables["surface_nrow"]) * int(self.setup.tables["surface_ncol"])
-            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * (self.ntbody + 3)
+            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * soil.box_rows(self.ntbody)
             per += 8 * soil.N_STATS + 4
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
