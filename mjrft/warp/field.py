@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 import warp as wp
 
+from mjrft.core import soil as core_soil
 from mjrft.core import surface as core_surface
 from mjrft.core.material import Material, as_material
 from mjrft.field import plugin
@@ -766,6 +767,18 @@ class WarpField:
         if st.soil is None:
             raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
         return st.soil.numpy().copy()
+
+    def soil_counters(self, d) -> dict[str, np.ndarray]:
+        """Each world's deforming-ground counters since its start or reset, the engine's
+        ``Soil.counters`` (``mjrft.core.soil.SOIL_STATS``): updates, volume excavated [m^3],
+        volume that found no rim [m^3], updates whose relaxation met its budget, triangles
+        rasterised, footprint vertices at the edge ring, pairs of neighbouring vertices the
+        relaxation compared (its work); each (nworld,), a copy."""
+        st = self._worlds_of(d)
+        if st.ground is None:
+            raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
+        stats = st.ground.stats.numpy()
+        return {name: stats[:, i].copy() for i, name in enumerate(core_soil.SOIL_STATS)}
 
     def below_ground(self, d) -> np.ndarray:
         """(nworld,) per world the tagged body (``body_ids`` index) that reached below the
