@@ -5,8 +5,10 @@ h and the compacted level c, and the memory p, per vertex; docs/terrain.md). At 
 of a new time (or every ``deform_every`` steps) the ground follows the intruders, with the
 engine's rules step for step: footprints (the downward-facing triangles rasterised onto the
 vertices below them), excavation of the occupied columns down to the floor (which remembers the
-depth reference), deposition of the cut volume on the footprint's rim, weighted towards the
-horizontal motion, and relaxation to the angle of repose (a sweep, then a first-in first-out
+depth reference), deposition of the cut volume as a cone at the repose slope around the
+footprint's rim (rising ahead of the horizontal motion; the rim alone, by weight, where the
+cone's box does not fit in the work row), and relaxation to within SLOPE_TOLERANCE of the
+repose slope (a sweep of each intruder's box, where it is and was, then a first-in first-out
 queue of the vertices that moved, within a work budget). The update is serial by nature (the
 queue's order decides where material goes), so a world's update runs in one thread, in the
 engine's order, and gives the engine's ground on the same configurations.
