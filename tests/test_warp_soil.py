@@ -22,6 +22,7 @@ import warp as wp
 import mjrft
 import mjrft.warp as mw
 from mjrft.core import surface as cs
+from mjrft.core.soil import SOIL_STATS
 from mjrft.field import GranularField
 
 DEVICE = "cpu"
@@ -30,6 +31,8 @@ wp.config.quiet = True
 GROUND_ATOL = 1e-9
 #: Every move takes from one vertex what it gives another (tests/test_soil.py's bound).
 VOLUME_RTOL = 1e-9
+#: The counters' volumes sum the same cuts in the same order as the engine's: rounding only.
+COUNTER_RTOL = 1e-12
 
 PLATE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
 <custom><text name="mjrft:material" data="glass_beads"/>
@@ -47,13 +50,20 @@ BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0
 <worldbody><body name="blade" pos="0 0 0"><joint name="x" type="slide" axis="1 0 0"/>
 <geom name="blade" type="box" size="0.006 0.02 0.02" pos="0 0 0.01" mass="1"/></body>
 </worldbody><actuator><velocity joint="x" kv="2000"/></actuator></mujoco>"""
+#: Ground wide enough for the cone deposit's box to fit in the work row (the scenes above, whose
+#: intruders span a large part of the grid, fall back to the weighted rim at every update).
+WIDE_PLATE = PLATE.replace(
+    "-0.06 -0.06 -0.1 0.06 0.06 0.05", "-0.08 -0.08 -0.1 0.08 0.08 0.05"
+).replace('size="0.025 0.025 0.005"', 'size="0.01 0.01 0.005"')
+WIDE_BLADE = BLADE.replace("-0.05 -0.04 -0.1 0.15 0.04 0.05", "-0.05 -0.12 -0.1 0.15 0.12 0.05")
 
 
 def follow(xml: str, ctrl: np.ndarray, nstep: int):
     """Steps nworld = len(ctrl) worlds on Warp (ctrl (nworld, nu) held), the engine's ground
     following each world's configurations; returns (Warp blocks, engine blocks, excavated
-    volumes [m^3]) after nstep steps, each (nworld, ...); no intruder went below the bottom, and
-    the last pass's wrenches are the engine's."""
+    volumes [m^3]) after nstep steps, each (nworld, ...); no intruder went below the bottom, the
+    last pass's wrenches are the engine's, and so are the ground's counters (the volumes to
+    rounding)."""
     plain = mujoco.MjModel.from_xml_string(xml)
     field = mw.WarpField(plain, device=DEVICE, low_speed="off")
     assert field.deforms
@@ -84,6 +94,12 @@ def follow(xml: str, ctrl: np.ndarray, nstep: int):
     scale = np.abs(cpu_wrench).max()
     assert scale > 0.0
     np.testing.assert_allclose(wrench, cpu_wrench, rtol=0, atol=1e-12 * scale)
+    # the work done: every counter, the relaxation's pair visits included
+    counters = field.soil_counters(d)
+    for name in SOIL_STATS:
+        engine = [cpu.soil(cd).counters[name] for cd in cpu_d]
+        np.testing.assert_allclose(counters[name], engine, rtol=COUNTER_RTOL, atol=0, err_msg=name)
+    assert np.all(counters["visits"] > 0)
     got = field.soil_blocks(d)
     print("ground gap", np.abs(got - want).max(), "excavated", excavated)
     return got, want, excavated
@@ -91,8 +107,13 @@ def follow(xml: str, ctrl: np.ndarray, nstep: int):
 
 @pytest.mark.parametrize(
     ("xml", "ctrl", "nstep"),
-    [(PLATE, [[-0.008], [-0.004]], 60), (BLADE, [[0.1], [0.05]], 120)],
-    ids=["plate-press", "blade-drag"],
+    [
+        (PLATE, [[-0.008], [-0.004]], 60),
+        (BLADE, [[0.1], [0.05]], 120),
+        (WIDE_PLATE, [[-0.008], [-0.004]], 60),
+        (WIDE_BLADE, [[0.1], [0.05]], 120),
+    ],
+    ids=["plate-press", "blade-drag", "cone-plate-press", "cone-blade-drag"],
 )
 def test_each_worlds_ground_is_the_engines(xml, ctrl, nstep):
     """A plate pressed 8 and 4 mm into the ground (its position servo's target), and a blade

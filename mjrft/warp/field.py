@@ -27,6 +27,7 @@ import mujoco
 import numpy as np
 import warp as wp
 
+from mjrft.core import soil as core_soil
 from mjrft.core import surface as core_surface
 from mjrft.core.material import Material, as_material
 from mjrft.field import plugin
@@ -431,7 +432,7 @@ class WarpField:
         gr.owner = wp.array(np.full((nworld, n), -1, dtype=np.int32), dtype=int, device=dev)
         gr.queue = wp.zeros((nworld, n), dtype=int, device=dev)
         gr.work = wp.zeros((nworld, n), dtype=f64, device=dev)
-        gr.box = wp.zeros((nworld, 4 * (self.ntbody + 3)), dtype=f64, device=dev)
+        gr.box = wp.zeros((nworld, 4 * soil.box_rows(self.ntbody)), dtype=f64, device=dev)
         gr.stats = wp.zeros((nworld, soil.N_STATS), dtype=f64, device=dev)
         gr.status = wp.array(np.full(nworld, -1, dtype=np.int32), dtype=int, device=dev)
         vert = np.asarray(fm["elem_vert"], dtype=np.float64).reshape(-1, 9)
@@ -458,7 +459,7 @@ class WarpField:
             per += 8 * sum(_mech_sizes(self.model.nv, self.ntbody, self.model.nu).values())
         if self.deforms:
             n = int(self.setup.tables["surface_nrow"]) * int(self.setup.tables["surface_ncol"])
-            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * (self.ntbody + 3)
+            per += 8 * int(self.setup.tables["nsoil"]) + 24 * n + 8 * 4 * soil.box_rows(self.ntbody)
             per += 8 * soil.N_STATS + 4
         return per + (self.nelem * 24 if self.store_element_forces else 0)
 
@@ -766,6 +767,18 @@ class WarpField:
         if st.soil is None:
             raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
         return st.soil.numpy().copy()
+
+    def soil_counters(self, d) -> dict[str, np.ndarray]:
+        """Each world's deforming-ground counters since its start or reset, the engine's
+        ``Soil.counters`` (``mjrft.core.soil.SOIL_STATS``): updates, volume excavated [m^3],
+        volume that found no rim [m^3], updates whose relaxation met its budget, triangles
+        rasterised, footprint vertices at the edge ring, pairs of neighbouring vertices the
+        relaxation compared (its work); each (nworld,), a copy."""
+        st = self._worlds_of(d)
+        if st.ground is None:
+            raise ValueError("this field's ground does not deform (mjrft:deform_cell)")
+        stats = st.ground.stats.numpy()
+        return {name: stats[:, i].copy() for i, name in enumerate(core_soil.SOIL_STATS)}
 
     def below_ground(self, d) -> np.ndarray:
         """(nworld,) per world the tagged body (``body_ids`` index) that reached below the

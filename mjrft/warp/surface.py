@@ -114,10 +114,12 @@ def soil_vertex(sf: Surface, n: int, r: int, c: int, lev: int) -> f64:
 
 @wp.func
 def soil_depth(sf: Surface, p: vec3d) -> f64:
-    """Resisting depth [m] of p under world sf.w's deforming grid (engine SoilDepth)."""
+    """Resisting depth [m] of p under world sf.w's deforming grid (engine SoilDepth): (h + p) - z
+    below the compacted level c, h - z above it (negative above the surface, as under a fixed
+    grid, so the force pass clips an element the surface crosses where it crosses)."""
     at = soil_levels(sf, p[0], p[1])
     if p[2] >= at[0] + SOIL_CONTACT:
-        return f64(0.0)
+        return at[0] - p[2]
     out = wp.max(at[0] - p[2], f64(0.0))
     if p[2] < at[1] + SOIL_CONTACT:
         out += at[2]
