@@ -1,13 +1,16 @@
 """Convergence of the deforming ground with its cell: a plate resting under its weight and a
 dragged blade, at successive halvings of the cell, with the observed order.
 
-Run: python benchmarks/deform_convergence.py [--cells 0.01 0.005 0.0025 0.00125]
+Run: python benchmarks/deform_convergence.py [--cells 0.01 0.005 0.0025 0.00125] [--quadruped]
 Plate: a 5 cm square plate of 0.84 kg on glass beads dropped from 1 mm above the surface and
 left 0.6 s to settle; its rest depth [m] (and on the pristine surface, for reference). Blade: as in
 benchmarks/deform_blade.py (4 cm wide, 15 mm deep, 10 cm at 0.1 m/s), its mean drag [N] over
 the second half. For each: the value per cell, the change between successive cells, the observed
 order p = log2(change / next change) of the last three cells and the Richardson estimate of the
-cell-free value, with each cell's error against it.
+cell-free value, with each cell's error against it. --quadruped: the Go2-class quadruped
+(models/go2_sand.xml) set down with its feet on the surface and its home ctrl held, QUAD_S
+seconds: its feet's mean depth at the end [m] (the same table), and when it settled: the first
+time after which the torso's speed stays below SETTLED_SPEED (NaN if it did not within QUAD_S).
 """
 
 from __future__ import annotations
@@ -30,6 +33,11 @@ PLATE = """<mujoco><option timestep="0.001" integrator="implicitfast"/>
 <geom name="plate" type="box" size="0.025 0.025 0.005" mass="0.84"/></body></worldbody>
 </mujoco>"""
 SETTLE_S = 0.6
+#: The quadruped's run [s] and the torso speed [m/s] below which it counts as settled (issue:
+#: within 2 s on the finer cells).
+QUAD_S, SETTLED_SPEED = 4.0, 1e-6
+#: The quadruped's medium [m]: the ground around its stance (xmin ymin zmin xmax ymax zmax).
+QUAD_REGION = [-0.45, -0.35, -0.5, 0.55, 0.35, 0.05]
 
 
 def plate_depth(cell: float | None) -> float:
@@ -40,6 +48,35 @@ def plate_depth(cell: float | None) -> float:
     while data.time < SETTLE_S:
         mujoco.mj_step(model, data)
     return -(data.qpos[0] + 0.006 - 0.005)  # bottom: 5 mm below the body origin
+
+
+def quadruped(cell: float | None) -> tuple[float, float]:
+    """(mean feet depth [m] below the original surface after QUAD_S, settling time [s])."""
+    import warnings
+
+    from mjrft.envs import go2_sand
+
+    spec = go2_sand.build_spec()
+    spec.add_numeric(name="mjrft:region", data=QUAD_REGION)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the thighs' SinkingWarning on deep ground
+        model = mjrft.load_model(spec, deform_cell=cell)
+    data = mujoco.MjData(model)
+    data.qpos[:] = model.qpos0
+    data.qpos[7:] = go2_sand.HOME_CTRL
+    mujoco.mj_kinematics(model, data)
+    feet = [model.geom(f"{leg}_foot").id for leg in go2_sand.LEGS]
+    radius = model.geom_size[feet, 0]
+    data.qpos[2] -= (data.geom_xpos[feet, 2] - radius).min()  # the lowest foot on the surface
+    data.ctrl[:] = go2_sand.HOME_CTRL
+    settled = math.nan
+    while data.time < QUAD_S:
+        mujoco.mj_step(model, data)
+        if np.linalg.norm(data.qvel[:3]) >= SETTLED_SPEED:
+            settled = math.nan
+        elif math.isnan(settled):
+            settled = data.time
+    return float(np.mean(-(data.geom_xpos[feet, 2] - radius))), settled
 
 
 def blade_drag(cell: float | None) -> float:
@@ -64,10 +101,17 @@ def table(name: str, unit: str, scale: float, cells: list[float], values: list[f
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=float, nargs="+", default=[0.01, 0.005, 0.0025, 0.00125])
+    ap.add_argument("--quadruped", action="store_true", help="the Go2's stance instead")
     args = ap.parse_args()
     if len(args.cells) < 3:
         ap.error("--cells needs at least three sizes for an observed order")
     cells = sorted(args.cells, reverse=True)
+    if args.quadruped:
+        runs = [quadruped(c) for c in cells]
+        table("Go2 feet depth", "mm", 1e3, cells, [r[0] for r in runs], quadruped(None)[0])
+        for c, (_, t) in zip(cells, runs, strict=True):
+            print(f"  cell {c * 1e3:g} mm: settled (|v| < {SETTLED_SPEED:g} m/s) at t = {t:.3f} s")
+        return
     table("plate rest depth", "mm", 1e3, cells, [plate_depth(c) for c in cells], plate_depth(None))
     table("blade drag", "N", 1.0, cells, [blade_drag(c) for c in cells], blade_drag(None))
 
