@@ -4,6 +4,8 @@
 
 #include <cmath>
 
+#include "surface.h"
+
 namespace mjrft {
 namespace {
 
@@ -107,6 +109,12 @@ bool LowestPoint(const mjModel* m, const mjData* d, int geom, f64 out[3]) {
       return true;
     }
   }
+}
+
+f64 Sinkage(const mjModel* m, const mjData* d, const Tables& t, const f64* soil, int geom,
+            f64 low[3]) {
+  if (!LowestPoint(m, d, geom, low)) return NAN;
+  return surface::Height(t.surface_prm, t.surface_grid, soil, low[0], low[1]) - low[2];
 }
 
 }  // namespace mjrft

@@ -16,6 +16,12 @@ namespace mjrft {
 // planes and height fields, which have no lowest point (out untouched).
 bool LowestPoint(const mjModel* m, const mjData* d, int geom, f64 out[3]);
 
+// Sinkage [m] of geom `geom`: the height of the medium's surface (t's, with the deforming
+// ground's block soil) above its lowest point (LowestPoint, written into low), negative while
+// it is above the surface; NaN for a geom without a lowest point.
+f64 Sinkage(const mjModel* m, const mjData* d, const Tables& t, const f64* soil, int geom,
+            f64 low[3]);
+
 }  // namespace mjrft
 
 #endif  // MJRFT_ENGINE_LOWEST_H_

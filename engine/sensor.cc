@@ -8,7 +8,6 @@
 
 #include "granular.h"
 #include "lowest.h"
-#include "surface.h"
 
 namespace mjrft {
 namespace {
@@ -37,10 +36,10 @@ void PureGeomWrench(const mjData* d, const Tables& t, const State& s, int g, con
 }
 
 // The local surface's height above tagged geom g's lowest point [m] (0 for a geom without one).
-f64 Sinkage(const mjModel* m, const mjData* d, const Tables& t, const State& s, int g) {
+f64 TaggedSinkage(const mjModel* m, const mjData* d, const Tables& t, const State& s, int g) {
   f64 low[3];
-  if (!LowestPoint(m, d, static_cast<int>(t.tgeom_geomid[g]), low)) return 0.0;
-  return surface::Height(t.surface_prm, t.surface_grid, s.soil, low[0], low[1]) - low[2];
+  f64 depth = Sinkage(m, d, t, s.soil, static_cast<int>(t.tgeom_geomid[g]), low);
+  return std::isnan(depth) ? 0.0 : depth;
 }
 
 f64 Norm3(const f64* v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
@@ -152,7 +151,7 @@ void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, i
     int below = 0;
     bool mine = false;
     for (i64 h = t.tbody_geomadr[k]; h < t.tbody_geomadr[k] + t.tbody_geomnum[k]; h++) {
-      bool under = !s.cull[h] && Sinkage(m, d, t, s, static_cast<int>(h)) > 0.0;
+      bool under = !s.cull[h] && TaggedSinkage(m, d, t, s, static_cast<int>(h)) > 0.0;
       below += under;
       mine = mine || (h == g && under);
     }
@@ -175,7 +174,7 @@ void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, i
   out[5] = w[5] + r[0] * w[1] - r[1] * w[0];
 
   // 4. sinkage: the local surface's height above the lowest point
-  out[6] = Sinkage(m, d, t, s, g);
+  out[6] = TaggedSinkage(m, d, t, s, g);
 }
 
 void RegisterSensor() {

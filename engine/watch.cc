@@ -28,13 +28,14 @@ f64 Depth(const mjModel* m, const mjData* d, const Tables& t, const State& s, i6
   }
   // 2. the lowest point, inside the region where one bounds the medium
   f64 low[3];
-  if (!LowestPoint(m, d, geom, low)) return 0.0;
+  f64 depth = Sinkage(m, d, t, s.soil, geom, low);
+  if (std::isnan(depth)) return 0.0;
   if (t.use_region) {
     for (int c = 0; c < 3; c++) {
       if (low[c] < t.region[c] || low[c] > t.region[3 + c]) return 0.0;
     }
   }
-  return surface::Height(t.surface_prm, t.surface_grid, s.soil, low[0], low[1]) - low[2];
+  return depth;
 }
 
 void ReportSunk(const mjModel* m, const mjData* d, const Tables& t, State& s) {
