@@ -30,10 +30,12 @@ SPEED = 0.1  # [m/s]
 WINDOW = 0.01  # [m] of travel per window of the drift measure
 
 
-def drag(cell: float | None, length: float) -> dict:
-    """Drag force samples [N] over the second half of the drag, and the ground's counters."""
+def drag(cell: float | None, length: float, travel: float = 0.0) -> dict:
+    """Drag force samples [N] over the second half of the drag, and the ground's counters; the
+    ground updated once the blade travelled `travel` cells (0: at every step)."""
     tag = f'<numeric name="mjrft:deform_cell" data="{cell}"/>' if cell else ""
-    model = mjrft.load_model(BLADE.format(xmax=length + 0.08, cell=tag))
+    model = mjrft.load_model(BLADE.format(xmax=length + 0.08, cell=tag),
+                             deform_travel=travel if cell else None)  # fmt: skip
     field = mjrft.GranularField(model)
     data = mujoco.MjData(model)
     data.ctrl[0] = SPEED

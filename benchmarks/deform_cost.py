@@ -1,12 +1,14 @@
 """Cost of the deforming ground against the same scene on pristine ground, back to back.
 
 Run: python benchmarks/deform_cost.py [--scenes hexapod go2 wheel] [--seconds 10]
-         [--cells 0.005 0.002] [--every 1 10] [--frozen] [--repeats 3]
+         [--cells 0.005 0.002] [--every 1 10] [--travel 0.25 1] [--frozen] [--repeats 3]
          [--baseline TREE --baseline-library LIB]
 Scenes: ``hexapod`` (hexapod_sand, the 1 Hz alternating tripod), ``go2`` (models/go2_sand.xml
-from its home keyframe, ``go2_sand.trot_ctrl``'s open-loop trot) and ``wheel``
+from its home keyframe, ``go2_sand.trot_ctrl``'s open-loop trot), ``go2_stand`` (the same
+robot standing, its home ctrl held) and ``wheel``
 (models/wheel_rig.xml at slip 0.3, one 15 cm pass, 1500 triangles), each on the pristine surface
-and on deforming ground per cell [m] and per mjrft:deform_every; ``--frozen`` adds, per cell,
+and on deforming ground per cell [m] and per mjrft:deform_every (and per mjrft:deform_travel
+[cells] with ``--travel``; the wheel rig updates at every step); ``--frozen`` adds, per cell,
 ground that follows the intruders only at its first update (deform_every 1e8: the force pass
 looks the grid up at every step, nothing else changes). The cases of a scene run interleaved,
 repeat by repeat, so a busy machine slows them alike; medians of the wall time, its ratio to
@@ -36,7 +38,12 @@ import numpy as np
 OUT = Path(__file__).resolve().parent / "results" / "deform_cost.csv"
 #: Default cells [m] per scene: the hexapod's documented 5 and 2 mm, the Go2's 5 and 2.5 mm,
 #: the wheel's 5 mm (benchmarks/wheel_slip.py).
-CELLS = {"hexapod": (0.005, 0.002), "go2": (0.005, 0.0025), "wheel": (0.005,)}
+CELLS = {
+    "hexapod": (0.005, 0.002),
+    "go2": (0.005, 0.0025),
+    "go2_stand": (0.005, 0.0025),
+    "wheel": (0.005,),
+}
 FROZEN = 10**8  # deform_every that never updates again after the first update
 #: The Go2's medium [m] (xmin ymin zmin xmax ymax zmax): its open-loop trot covers about 1 m
 #: in 4 s (leaving a smaller region it falls), and its calves reach 0.3 m deep on deforming
@@ -49,17 +56,26 @@ def _counters(field, data) -> dict:
     """The ground's counters as benchmark columns."""
     soil = field.soil(data)
     c = soil.counters
-    return {"volume_drift": abs(soil.volume()) / c["excavated"] if c["excavated"] else 0.0,
+    return {"updates": c["updates"],
+            "volume_drift": abs(soil.volume()) / c["excavated"] if c["excavated"] else 0.0,
             "unrelaxed_share": c["unrelaxed"] / max(c["updates"], 1.0),
             "visits_per_update": c.get("visits", math.nan) / max(c["updates"], 1.0)}  # fmt: skip
 
 
-def hexapod(cell: float | None, every: int, seconds: float) -> dict:
+def rule_options(cell: float | None, every: float) -> dict:
+    """The scene options of an update rule: every >= 1, deform_every [steps]; else
+    deform_travel = -every [cells] (the cases' encoding); nothing on the pristine surface."""
+    if not cell:
+        return {}
+    return {"deform_every": int(every)} if every >= 1 else {"deform_travel": -every}
+
+
+def hexapod(cell: float | None, every: float, seconds: float) -> dict:
     """The hexapod's tripod walk for seconds [s] of simulated time."""
     from mjrft.envs import hexapod_sand
 
     env = hexapod_sand.make(seed=0, time_limit=math.inf, deform_cell=cell,
-                            deform_every=every if cell else None)  # fmt: skip
+                            **rule_options(cell, every))  # fmt: skip
     try:
         env.reset()
         action = np.array([1.0, math.pi])
@@ -75,13 +91,14 @@ def hexapod(cell: float | None, every: int, seconds: float) -> dict:
         env.close()
 
 
-def go2(cell: float | None, every: int, seconds: float) -> dict:
-    """The Go2's open-loop trot from its home keyframe for seconds [s] of simulated time."""
+def go2(cell: float | None, every: float, seconds: float, trot: bool = True) -> dict:
+    """The Go2's open-loop trot (trot False: its home ctrl held) from its home keyframe for
+    seconds [s] of simulated time."""
     from mjrft.envs import go2_sand
 
     import mjrft
 
-    options = mjrft.SceneOptions(deform_cell=cell, deform_every=every if cell else None)
+    options = mjrft.SceneOptions(deform_cell=cell, **rule_options(cell, every))
     spec = go2_sand.build_spec()
     spec.add_numeric(name="mjrft:region", data=GO2_REGION)  # both cases, the same scene
     model = mjrft.load_model(spec, options)
@@ -90,7 +107,8 @@ def go2(cell: float | None, every: int, seconds: float) -> dict:
     substeps = round(0.02 / model.opt.timestep)
     t0 = time.perf_counter()
     for _ in range(round(seconds / 0.02)):
-        data.ctrl[:] = go2_sand.trot_ctrl(data.time)
+        if trot:
+            data.ctrl[:] = go2_sand.trot_ctrl(data.time)
         mujoco.mj_step(model, data, substeps)
     row = {"wall_s": time.perf_counter() - t0, "x_m": float(data.qpos[0])}
     if cell:
@@ -98,7 +116,7 @@ def go2(cell: float | None, every: int, seconds: float) -> dict:
     return row
 
 
-def wheel(cell: float | None, every: int, seconds: float) -> dict:
+def wheel(cell: float | None, every: float, seconds: float) -> dict:
     """One pass of the wheel rig (its length, not seconds, sets the duration)."""
     from mjrft.app import wheel as rig
 
@@ -110,14 +128,21 @@ def wheel(cell: float | None, every: int, seconds: float) -> dict:
     return {"wall_s": time.perf_counter() - t0, "x_m": p.sinkage}
 
 
-SCENES = {"hexapod": hexapod, "go2": go2, "wheel": wheel}
+def go2_stand(cell: float | None, every: float, seconds: float) -> dict:
+    """The Go2 standing: its home keyframe's ctrl held for seconds [s] of simulated time."""
+    return go2(cell, every, seconds, trot=False)
 
 
-def cases(scene: str, cells: list[float] | None, everys: list[int], frozen: bool) -> list:
-    """(cell or None for pristine, deform_every) of one scene."""
+SCENES = {"hexapod": hexapod, "go2": go2, "go2_stand": go2_stand, "wheel": wheel}
+
+
+def cases(scene: str, cells: list[float] | None, everys: list[int], travels: list[float],
+          frozen: bool) -> list:  # fmt: skip
+    """(cell or None for pristine, rule) of one scene; rule: deform_every, or -deform_travel."""
     out = [(None, 1)]
     for cell in cells or CELLS[scene]:
-        out += [(cell, e) for e in (everys if scene != "wheel" else [1])]
+        rules = [*everys, *(-t for t in travels if t > 0)] if scene != "wheel" else [1]
+        out += [(cell, e) for e in rules]
         if frozen and scene != "wheel":
             out.append((cell, FROZEN))
     return out
@@ -145,12 +170,12 @@ if sys.argv[1] != "-":
         spec.loader.exec_module(module)
 sys.path.insert(0, sys.argv[2])
 import deform_cost as dc
-scene, cell, every, seconds = sys.argv[3], float(sys.argv[4]), int(sys.argv[5]), float(sys.argv[6])
+scene, (cell, every, seconds) = sys.argv[3], map(float, sys.argv[4:7])
 print(json.dumps(dc.SCENES[scene](cell or None, every, seconds)))
 """
 
 
-def in_process(tree: Path | None, library: str | None, scene: str, cell, every: int,
+def in_process(tree: Path | None, library: str | None, scene: str, cell, every: float,
                seconds: float):  # fmt: skip
     """One case in a child process importing mjrft from checkout tree with engine library
     (tree None: this checkout, as installed)."""
@@ -164,9 +189,10 @@ def in_process(tree: Path | None, library: str | None, scene: str, cell, every: 
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def report(row: dict, cell, every: int) -> None:
+def report(row: dict, cell, every: float) -> None:
     """Prints one row."""
-    label = "pristine" if cell is None else f"{cell * 1e3:g} mm, every {every}"
+    rule = f"every {every:g}" if every >= 1 else f"travel {-every:g} cells"
+    label = "pristine" if cell is None else f"{cell * 1e3:g} mm, {rule}"
     extra = (f", drift {row['volume_drift']:.1e}, budget met at {row['unrelaxed_share']:.1%} "
              f"of updates, {row['visits_per_update']:.0f} visits/update"
              if "volume_drift" in row else "")  # fmt: skip
@@ -180,6 +206,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=10.0, help="simulated time per walk [s]")
     ap.add_argument("--cells", type=float, nargs="+", help="cells [m] (default: per scene)")
     ap.add_argument("--every", type=int, nargs="+", default=[1], help="mjrft:deform_every")
+    ap.add_argument("--travel", type=float, nargs="+", default=[], help="mjrft:deform_travel")
     ap.add_argument("--frozen", action="store_true", help="add never-updated ground per cell")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--baseline", type=Path, help="another checkout to compare, case by case")
@@ -190,7 +217,7 @@ def main() -> None:
     versions = [("this", None)] + ([("baseline", args.baseline)] if args.baseline else [])
     rows = []
     for scene in args.scenes:
-        todo = cases(scene, args.cells, args.every, args.frozen)
+        todo = cases(scene, args.cells, args.every, args.travel, args.frozen)
         runs = {(v, c): [] for v, _ in versions for c in todo}
         for _ in range(args.repeats):
             for cell, every in todo:
@@ -206,13 +233,14 @@ def main() -> None:
             for cell, every in todo:
                 rs = runs[(version, (cell, every))]
                 wall = statistics.median(r["wall_s"] for r in rs)
-                row = {"version": version, "scene": scene, "cell_m": cell or 0.0, "every": every,
+                row = {"version": version, "scene": scene, "cell_m": cell or 0.0,
+                       "every": every if every >= 1 else "", "travel": -every if every < 0 else "",
                        **rs[0], "wall_s": wall, "vs_pristine": wall / base}  # fmt: skip
                 rows.append(row)
                 report(row, cell, every)
     OUT.parent.mkdir(exist_ok=True)
-    keys = ["version", "scene", "cell_m", "every", "wall_s", "vs_pristine", "x_m", "volume_drift",
-            "unrelaxed_share", "visits_per_update"]  # fmt: skip
+    keys = ["version", "scene", "cell_m", "every", "travel", "wall_s", "vs_pristine", "x_m",
+            "volume_drift", "unrelaxed_share", "visits_per_update", "updates"]  # fmt: skip
     with OUT.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=keys)
         w.writeheader()

@@ -2,6 +2,8 @@
 
 #include "deform.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
@@ -64,15 +66,47 @@ void HeadStore(f64* block, int at, const f64* box, bool keep) {
   }
 }
 
+// The fastest speed [m/s] of a point of a tagged geom that may touch the medium: its centre's
+// speed plus its angular speed times its bounding radius (cvel: angular velocity, then the
+// velocity of the point at the root's subtree CoM; world frame).
+f64 IntruderSpeed(const mjData* d, const Tables& t, const State& s) {
+  f64 fastest = 0.0;
+  for (int g = 0; g < t.ntgeom; g++) {
+    if (Culled(d, t, s, g)) continue;
+    i64 k = t.tgeom_tbody[g];
+    const f64* cv = d->cvel + 6 * t.tbody_bodyid[k];
+    const f64* x = d->geom_xpos + 3 * t.tgeom_geomid[g];
+    const f64* o = d->subtree_com + 3 * t.tbody_rootid[k];
+    f64 rx = x[0] - o[0], ry = x[1] - o[1], rz = x[2] - o[2];
+    f64 vx = cv[3] + cv[1] * rz - cv[2] * ry;
+    f64 vy = cv[4] + cv[2] * rx - cv[0] * rz;
+    f64 vz = cv[5] + cv[0] * ry - cv[1] * rx;
+    f64 spin = std::sqrt(cv[0] * cv[0] + cv[1] * cv[1] + cv[2] * cv[2]);
+    fastest = std::max(fastest, std::sqrt(vx * vx + vy * vy + vz * vz) + spin * t.tgeom_rbound[g]);
+  }
+  return fastest;
+}
+
 }  // namespace
 
-bool Due(const mjModel* m, const mjData* d, const Tables& t, const State& s) {
-  const f64* block = s.soil;
+bool Due(const mjModel* m, const mjData* d, const Tables& t, State& s) {
+  f64* block = s.soil;
+  const f64* prm = t.surface_prm;
   f64 now = d->time, last = block[surface::kSoilTime];
   if (block[surface::kSoilDone] == 0.0 || now < last) return true;
-  f64 every = t.surface_prm[surface::kEvery];
-  if (every <= 1.0) return last != now;
-  return now - last > (every - 0.5) * m->opt.timestep;
+  f64 every = prm[surface::kEvery];
+  if (every >= 1.0) {
+    if (every == 1.0) return last != now;
+    return now - last > (every - 0.5) * m->opt.timestep;
+  }
+  f64 limit = prm[surface::kTravel] * std::min(prm[surface::kDx], prm[surface::kDy]);
+  if (!(limit > 0.0)) return last != now;
+  f64 clock = block[surface::kSoilClock];
+  if (now > clock) {
+    block[surface::kSoilTravel] += IntruderSpeed(d, t, s) * (now - std::max(clock, last));
+    block[surface::kSoilClock] = now;
+  }
+  return block[surface::kSoilTravel] >= limit;
 }
 
 int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
@@ -153,6 +187,8 @@ int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
   print[1] = s.soil_stats[soil::kStatExcavated];
   print[2] = block[surface::kSoilTime];
   print[3] = 1.0;
+  block[surface::kSoilTravel] = 0.0;
+  block[surface::kSoilClock] = d->time;
   return bad;
 }
 

@@ -15,10 +15,13 @@
 
 namespace mjrft::deform {
 
-// True if the ground has not yet followed the configuration at this time: at every new time,
-// or with mjrft:deform_every = k > 1 once k steps have passed since it last did (or the time
-// went back: a reset or a restored state).
-bool Due(const mjModel* m, const mjData* d, const Tables& t, const State& s);
+// True if the ground has not yet followed the configuration at this time: with
+// mjrft:deform_every = k >= 1, once k steps have passed since it last did; otherwise once the
+// intruders may have travelled mjrft:deform_travel cells since (each pass of a new time adds
+// the time passed times the fastest speed of a point of a tagged geom that may touch the
+// medium, its centre's speed plus its angular speed times its bounding radius; the distance
+// lives in the soil block); and whenever the time went back (a reset or a restored state).
+bool Due(const mjModel* m, const mjData* d, const Tables& t, State& s);
 
 // Moves the ground of this mjData (s.soil) to the intruders' current configuration (d->xpos,
 // xmat, cvel, subtree_com, geom_xpos, time). Work arrays: s.soil_floor, soil_owner, soil_queue,

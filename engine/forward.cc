@@ -67,6 +67,7 @@ i64 Forward(const mjModel* m, mjData* d, const Tables& t, State& s, int mode) {
   int bad = FirstBadBody(m, d, t);
   s.status[0] = bad < 0 ? kOk : -1 - bad;
   if (bad >= 0) return s.status[0];
+  s.pass[0] += 1;  // the depth memo (kernel.h) keeps nothing from an earlier pass
   for (int g = 0; g < t.ntgeom; g++) s.cull[g] = 0;
   for (int k = 0; k < t.ntbody; k++) s.keep[k] = s.frz[k] = s.slow[k] = 0;
 

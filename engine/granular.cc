@@ -308,6 +308,7 @@ void Instance::ResetCaches() {
   for (i64 i = 0; i < 1 + nk + 6 * nv + 6 * nk; i++) w.mech_cfg[i] = -1.0;
   for (i64 i = 0; i < 1 + 6 * nk; i++) w.mech_hkey[i] = -2;
   for (i64 g = 0; g < sizes_.ng; g++) w.geom_pure_pass[g] = -1;
+  for (i64 i = 0; i < 2 * sizes_.nelem; i++) w.elem_depth_pass[i] = -1;
   for (i64 i = 0; i < cells; i++) {
     w.soil_floor[i] = INFINITY;
     w.soil_owner[i] = -1;

@@ -34,6 +34,15 @@ Medium MediumOf(const Tables& t) {
           t.surface_prm, t.surface_grid, t.use_region != 0, t.region};
 }
 
+Medium MediumOf(const Tables& t, const State& s) {
+  Medium med = MediumOf(t);
+  f64 kind = t.surface_prm[surface::kKind];
+  if (kind == surface::kGrid || kind == surface::kSoil) {
+    med.memo = {s.elem_depth, s.elem_depth_pass, s.pass[0]};
+  }
+  return med;
+}
+
 Elements ElementsOf(const Tables& t) {
   return {t.elem_pos, t.elem_normal, t.elem_area, t.elem_reach, t.elem_patch};
 }
@@ -106,7 +115,15 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       f64 py = r10 * cx + r11 * cy + r12 * cz + oy;
       f64 pz = r20 * cx + r21 * cy + r22 * cz + oz;
       if (!flat && !plane) {
-        depth = surface::Depth(prm, med.surface_grid, soil, px, py, pz);
+        if (med.memo.depth && med.memo.pass_of[2 * i] == med.memo.pass) {
+          depth = med.memo.depth[4 * i];
+        } else {
+          depth = surface::Depth(prm, med.surface_grid, soil, px, py, pz);
+          if (med.memo.depth) {
+            med.memo.depth[4 * i] = depth;
+            med.memo.pass_of[2 * i] = med.memo.pass;
+          }
+        }
         if (depth <= -band * ri) continue;
       }
       if (med.use_region &&
@@ -151,7 +168,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       k = law::Gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, e.area[i], true);
     }
     quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm, med.surface_grid,
-                             soil);
+                             soil, med.memo);
     int nc = 0;
     k = quadrature::Triage(buf, idx, k, later, held, nl, e.area, e.reach, band, &nc);
     for (int j = 0; j < nc; j++) {

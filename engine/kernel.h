@@ -8,6 +8,8 @@
 #ifndef MJRFT_ENGINE_KERNEL_H_
 #define MJRFT_ENGINE_KERNEL_H_
 
+#include "quadrature.h"
+#include "state.h"
 #include "tables.h"
 
 namespace mjrft::kernel {
@@ -36,10 +38,15 @@ struct Medium {
   const f64* surface_grid;  // (nrow, ncol) grid heights [m]
   bool use_region;
   const f64* region;  // (2, 3) world box [m]
+  // Under a height grid or deforming ground: the depths a pass has looked up, per element
+  // (null: none kept). A pass evaluates a body at one pose, but the low-speed treatment asks
+  // for its wrench at several twists; the look-ups, not the law, are then most of the work.
+  quadrature::DepthMemo memo = {};
 };
 
-// The medium of a plugin instance's tables.
+// The medium of a plugin instance's tables; with a state, the memo of its pass.
 Medium MediumOf(const Tables& t);
+Medium MediumOf(const Tables& t, const State& s);
 // The elements of a plugin instance's tables.
 Elements ElementsOf(const Tables& t);
 

@@ -48,14 +48,24 @@ enum HeldRow {
 constexpr int kHeld = 16;
 using Held = f64[kHeld][law::kChunk];
 
+// The depths [m] one pass has looked up under an uneven surface, per element: depth (n, 4),
+// the centroid's then its corners'; pass_of (n, 2), the pass that looked up each (centroid,
+// corners), -1 none; pass, the current pass. depth null: nothing is kept.
+struct DepthMemo {
+  f64* depth = nullptr;
+  i64* pass_of = nullptr;
+  i64 pass = 0;
+};
+
 // Corner depths [m] and corner n . v [m/s] of the held elements later[0, nl) into held.
 // n . v is taken in the body frame, v = lin_b + ang_b x c at the corner c (the body's motion
 // expressed in its frame), so corner normals are not rotated; a corner's depth is measured
 // vertically at its world position (surface.h). patch (n, kPatchSize), cent (n, 3) body-frame
-// centroids; rot (9) body -> world, row-major; prm, grid, soil the surface.
+// centroids; rot (9) body -> world, row-major; prm, grid, soil the surface; memo the depths of
+// an uneven surface's corners this pass has looked up already, read and written.
 void CornerValues(const f64* patch, const f64* cent, const i64* later, Held& held, int nl,
                   const f64* rot, const f64* ang_b, const f64* lin_b, const f64* prm,
-                  const f64* grid, const f64* soil);
+                  const f64* grid, const f64* soil, const DepthMemo& memo);
 
 // Sorts the held elements later[0, nl) by their corner values: those trailing everywhere or dry
 // leave; those neither the free surface nor the leading boundary crosses, beyond the band

@@ -20,14 +20,33 @@ namespace mjrft::surface {
 // Kinds (prm[kKind]).
 constexpr int kFlat = 0, kPlane = 1, kGrid = 2, kSoil = 3;
 // Slots of prm; kSoil only: kTanRepose (tangent of the angle of repose), kEvery (steps between
-// updates of the ground).
-enum Prm { kKind, kZ0, kGx, kGy, kX0, kY0, kDx, kDy, kNcol, kNrow, kZmax, kTanRepose, kEvery };
+// updates of the ground; 0: kTravel's rule), kTravel (the ground follows the intruders once
+// they have travelled this many cells since it last did; 0: at every step).
+enum Prm {
+  kKind,
+  kZ0,
+  kGx,
+  kGy,
+  kX0,
+  kY0,
+  kDx,
+  kDy,
+  kNcol,
+  kNrow,
+  kZmax,
+  kTanRepose,
+  kEvery,
+  kTravel
+};
 // Head of a soil block: rise of the highest point above prm[kZmax] [m]; 1 once the grid
 // followed a configuration; its time [s]; the vertex box (r0, r1, c0, c1) still relaxing; the
-// box of the intruders' last footprints. Then the offsets of h and of c [m] and the memory p
-// [m], nrow * ncol each (row-major). All zero: the initial surface.
+// box of the intruders' last footprints; how far [m] the intruders may have travelled since
+// (deform.h, Due) and the time [s] that distance was last accumulated. Then the offsets of h
+// and of c [m] and the memory p [m], nrow * ncol each (row-major). All zero: the initial
+// surface.
 constexpr int kSoilZoff = 0, kSoilDone = 1, kSoilTime = 2, kSoilPending = 3, kSoilFoot = 7;
-constexpr int kSoilHead = 11;
+constexpr int kSoilTravel = 11, kSoilClock = 12;
+constexpr int kSoilHead = 13;
 // A point within this height [m] above a deforming surface still touches it (0.1 um: rounding
 // must not decide whether an intruder touches the floor it just pressed).
 constexpr f64 kSoilContact = 1e-7;

@@ -21,7 +21,7 @@ using i64 = std::int64_t;
 
 // Sizes of fixed-length rows (the Python layer writes the same numbers: tests/engine_bridge.py
 // checks them against mjrft.core.surface.PRM_SIZE and friends).
-constexpr int kPrmSize = 13;    // surface_prm (surface.h)
+constexpr int kPrmSize = 14;    // surface_prm (surface.h)
 constexpr int kPatchSize = 19;  // elem_patch row (quadrature.h)
 constexpr int kRk4Head = 2;     // rk4 record head (rk4.h)
 constexpr int kRk4Body = 49;    // rk4 record per tagged body

@@ -186,6 +186,7 @@ def make(
     deform_cell: float | None = None,
     repose: float | None = None,
     deform_every: int | None = None,
+    deform_travel: float | None = None,
 ):
     """The ``hexapod_sand`` environment.
 
@@ -201,7 +202,8 @@ def make(
       deform_cell: walk on ground that deforms and remembers (footprints, ruts; docs/terrain.md)
         on a grid of this cell [m] over ``DEFORM_REGION`` (on the flat surface only); each
         episode starts from pristine ground. repose: its angle of repose [deg] (default the
-        material preset's). deform_every: steps between its updates (default 1).
+        material preset's). deform_every: steps between its updates (default 1), or
+        deform_travel: the cells the legs travel between them (docs/terrain.md).
     """
     if deform_cell and slope is not None:
         raise ValueError("deform_cell: the deforming ground starts flat; pass slope=None")
@@ -209,6 +211,7 @@ def make(
     options = SceneOptions(
         material=material, n_triangles=n_triangles, deform_cell=deform_cell, repose=repose,
         deform_every=deform_every if deform_cell else None,
+        deform_travel=deform_travel if deform_cell else None,
     )  # fmt: skip
     physics = GranularPhysics.from_mjmodel(load_model(spec, options))
     task = HexapodWalk(random=resolve_random(random, seed), control_timestep=control_timestep)

@@ -49,6 +49,7 @@ for integrator in ("Euler", "RK4", "implicitfast"):
 for name in ("hexapod_sand", "dune_drop", "wheel_rig", "plate_rig", "root_circumnutation"):
     run(mjrft.load_model(resolve_model(name)), 150)
 run(mjrft.load_model(resolve_model("wheel_rig"), deform_cell=0.005), 200)
+run(mjrft.load_model(resolve_model("wheel_rig"), deform_cell=0.005, deform_travel=0.5), 200)
 # the sensor plugin (12 sensors) and the sinking check (untagged thighs and trunk)
 import warnings
 from mjrft.envs import go2_sand

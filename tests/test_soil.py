@@ -4,6 +4,7 @@ the MjData in its plugin_state (copies, saved states, resets, batches), leaving 
 user."""
 
 import copy
+import math
 
 import mujoco
 import numpy as np
@@ -13,6 +14,7 @@ from mujoco.batch import Batch
 import mjrft
 from mjrft.core import soil as rules
 from mjrft.field import GranularField, SceneError
+from mjrft.field.scene import SceneWarning
 
 ZETA = 3.3e5  # glass_beads [N/m^3]; alpha_z(0, pi/2) = 1 for a plate pushed straight down
 CELL = 0.0025  # [m]
@@ -117,6 +119,92 @@ def test_updating_every_k_steps_does_k_times_fewer_updates_for_the_same_footprin
     diff = np.abs(out[5][1] - out[1][1])
     assert np.mean(diff > 0.15 * CELL) <= 0.005
     assert diff.max() <= 0.25 * CELL
+
+
+def test_updating_after_a_travel_counts_the_distance_the_intruders_moved():
+    """mjrft:deform_travel = 0.5: a blade dragged at a steady 0.1 m/s updates the ground once
+    per half cell of travel (its speed is its fastest point's: it does not turn), the first
+    update at its first step; at rest it updates no more; an override of deform_every replaces
+    the MJCF's rule."""
+    xml = BLADE.replace('data="0.0025"/>', 'data="0.0025"/><numeric name="mjrft:deform_travel" '
+                        'data="0.5"/>')  # fmt: skip
+    m, f, d = load(xml)
+    d.ctrl[0] = 0.1  # [m/s]
+    for _ in range(50):  # up to speed (kv = 2000 on 1 kg: 1 ms time constant)
+        mujoco.mj_step(m, d)
+    x0, n0, steps = d.qpos[0], f.soil(d).counters["updates"], 0
+    while d.qpos[0] < x0 + 0.03:
+        mujoco.mj_step(m, d)
+        steps += 1
+    travelled = d.qpos[0] - x0
+    # Each update comes at the first step whose travel since the last one reaches the half cell.
+    per_update = math.ceil(0.5 * CELL / (travelled / steps)) * travelled / steps
+    updates = f.soil(d).counters["updates"] - n0
+    assert updates == pytest.approx(travelled / per_update, abs=1.0)
+    d.ctrl[0] = 0.0
+    for _ in range(100):  # stopping
+        mujoco.mj_step(m, d)
+    n1 = f.soil(d).counters["updates"]
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+    assert abs(d.qvel[0]) < 1e-9
+    assert f.soil(d).counters["updates"] - n1 <= 1
+    m2, f2, d2 = load(xml, deform_every=1)
+    mujoco.mj_step(m2, d2, 20)
+    assert f2.soil(d2).counters["updates"] == 20
+    assert abs(f2.soil(d2).volume()) <= VOLUME_RTOL * max(f2.soil(d2).counters["excavated"], 1e-12)
+
+
+def test_a_pass_looks_the_ground_up_again_where_the_body_moved():
+    """The depths a pass looks up are kept for that pass only (the treatment asks again at
+    other twists): a foot pressed into its footprint, then moved 3 mm sideways by hand, feels
+    at its new pose exactly what a new MjData restored to that state feels."""
+    xml = FOOT.format(cell=CELL, shape="sphere", size="0.012").replace(
+        '<joint name="z" type="slide" axis="0 0 1"/>',
+        '<joint name="z" type="slide" axis="0 0 1"/><joint name="x" type="slide" axis="1 0 0"/>',
+    )
+    m, f, d = load(xml)
+    drive(m, f, d, np.linspace(0.0, -0.01, 60))
+    d.qpos[1] += 0.003
+    mujoco.mj_forward(m, d)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(m, spec))
+    mujoco.mj_getState(m, d, state, spec)
+    d2 = mujoco.MjData(m)
+    mujoco.mj_setState(m, d2, state, spec)
+    mujoco.mj_forward(m, d2)
+    assert np.abs(f.wrench(d)[1]).max() > 0.1  # in the medium, on uneven ground
+    np.testing.assert_array_equal(f.wrench(d), f.wrench(d2))
+
+
+def test_an_automatic_cell_puts_ten_across_the_narrowest_intruder():
+    """deform_cell = "auto": rules.CELLS_ACROSS cells across the narrowest footprint (the middle
+    extent of each intruder's bounding box: 5 cm for the 5 x 5 x 1 cm plate, 2.4 cm for a
+    sphere of radius 1.2 cm beside it); over a region too large for that cell, the finest cell
+    whose grid fits rules.MAX_VERTICES, with a warning that names the intruder."""
+    xml = FOOT.format(cell="auto", **BOX).replace(
+        '<numeric name="mjrft:deform_cell" data="auto"/>',
+        '<text name="mjrft:deform_cell" data="auto"/>',
+    )
+    _, f, d = load(xml)
+    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.05 / rules.CELLS_ACROSS)
+    two = xml.replace(
+        '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>',
+        '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>'
+        '<body name="ball" pos="0.04 0 0.02"><geom name="ball" size="0.012" mass="0.1"/></body>',
+    ).replace(
+        '<element objtype="geom" objname="foot" prm="300"/>',
+        '<element objtype="geom" objname="foot" prm="300"/>'
+        '<element objtype="geom" objname="ball" prm="300"/>',
+    )
+    _, f, d = load(two)
+    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.024 / rules.CELLS_ACROSS)
+    wide = two.replace("-0.06 -0.06 -0.1 0.06 0.06 0.05", "-5 -5 -0.1 5 5 0.05")
+    with pytest.warns(SceneWarning, match="'ball'"):
+        _, f, d = load(wide)
+    soil = f.soil(d)
+    assert soil.height.size <= rules.MAX_VERTICES
+    assert soil.x[1] - soil.x[0] < 1.06 * math.sqrt(100.0 / rules.MAX_VERTICES)  # the finest fit
 
 
 def test_a_foot_pressed_again_into_its_footprint_feels_fresh_sand_only_at_its_floor():
@@ -418,6 +506,15 @@ REGION = '<numeric name="mjrft:region" data="-0.1 -0.1 -0.1 0.1 0.1 0.1"/>'
          '<numeric name="mjrft:deform_every" data="2.5"/>', "whole number of steps >= 1"),
         (REGION + '<numeric name="mjrft:deform_cell" data="0.01"/>'
          '<numeric name="mjrft:repose" data="0"/>', "(0, 90)"),
+        (REGION + '<numeric name="mjrft:deform_cell" data="0.01"/>'
+         '<numeric name="mjrft:deform_travel" data="-0.5"/>', "number of cells >= 0"),
+        (REGION + '<numeric name="mjrft:deform_cell" data="0.01"/>'
+         '<numeric name="mjrft:deform_every" data="2"/>'
+         '<numeric name="mjrft:deform_travel" data="0.5"/>', "give one"),
+        (REGION + '<text name="mjrft:deform_cell" data="fine"/>', "or 'auto'"),
+        ('<text name="mjrft:deform_cell" data="auto"/>', "mjrft:region"),
+        (REGION + '<text name="mjrft:deform_cell" data="auto"/>'
+         '<numeric name="mjrft:deform_cell" data="0.01"/>', "both in <custom>"),
     ],
 )  # fmt: skip
 def test_bad_deformation_settings_are_named(custom, message):

@@ -56,6 +56,14 @@ WIDE_PLATE = PLATE.replace(
     "-0.06 -0.06 -0.1 0.06 0.06 0.05", "-0.08 -0.08 -0.1 0.08 0.08 0.05"
 ).replace('size="0.025 0.025 0.005"', 'size="0.01 0.01 0.005"')
 WIDE_BLADE = BLADE.replace("-0.05 -0.04 -0.1 0.15 0.04 0.05", "-0.05 -0.12 -0.1 0.15 0.12 0.05")
+#: The blade with the ground following it once it has travelled half a cell (mjrft:deform_travel):
+#: at 10 and 5 cm/s an update every 7 and 13 steps, each well past the half cell (0.15 and
+#: 0.05 mm), so float32 speeds decide as the engine's do.
+TRAVEL_BLADE = BLADE.replace(
+    '<numeric name="mjrft:deform_cell" data="0.0025"/>',
+    '<numeric name="mjrft:deform_cell" data="0.0025"/><numeric name="mjrft:deform_travel" '
+    'data="0.5"/>',
+)
 
 
 def follow(xml: str, ctrl: np.ndarray, nstep: int):
@@ -112,8 +120,9 @@ def follow(xml: str, ctrl: np.ndarray, nstep: int):
         (BLADE, [[0.1], [0.05]], 120),
         (WIDE_PLATE, [[-0.008], [-0.004]], 60),
         (WIDE_BLADE, [[0.1], [0.05]], 120),
+        (TRAVEL_BLADE, [[0.1], [0.05]], 120),
     ],
-    ids=["plate-press", "blade-drag", "cone-plate-press", "cone-blade-drag"],
+    ids=["plate-press", "blade-drag", "cone-plate-press", "cone-blade-drag", "travel-blade-drag"],
 )
 def test_each_worlds_ground_is_the_engines(xml, ctrl, nstep):
     """A plate pressed 8 and 4 mm into the ground (its position servo's target), and a blade

@@ -659,6 +659,11 @@ def _integrator_name(model) -> str:
     return next((k for k, v in INTEGRATORS.items() if v == model.opt.integrator), "?")
 
 
+def _cell(text: str) -> float | str:
+    """--deform-cell: a cell [m] >= 0, or 'auto'."""
+    return "auto" if text == "auto" else _nonnegative_float(text)
+
+
 def _positive_float(text: str) -> float:
     try:
         v = float(text)
@@ -1043,7 +1048,8 @@ def _view(args: argparse.Namespace) -> int:
 SCENE_OPTIONS = {
     "material": "material", "n_triangles": "triangles", "tolerance": "tolerance",
     "low_speed": "low_speed", "stick_reach": "stick_reach", "deform_cell": "deform_cell",
-    "repose": "repose", "deform_every": "deform_every", "dynamic": "dynamic",
+    "repose": "repose", "deform_every": "deform_every", "deform_travel": "deform_travel",
+    "dynamic": "dynamic",
     "intruders": "intruders", "watch_sinking": "watch_sinking",
 }  # fmt: skip
 
@@ -1140,11 +1146,12 @@ def _add_scene_options(r) -> None:
     )
     r.add_argument(
         "--deform-cell",
-        type=_nonnegative_float,
+        type=_cell,
         default=None,
         metavar="CELL",
         help="ground that deforms and remembers, on a grid of CELL m over mjrft:region "
-        "(docs/terrain.md); 0 turns it off (default: the model's mjrft:deform_cell, else off)",
+        "(docs/terrain.md), or 'auto' (10 cells across the narrowest intruder); 0 turns it off "
+        "(default: the model's mjrft:deform_cell, else off)",
     )
     r.add_argument(
         "--repose",
@@ -1161,6 +1168,14 @@ def _add_scene_options(r) -> None:
         metavar="K",
         help="update the deforming ground every K steps: K times cheaper, the ground lagging the "
         "intruders by up to K steps (default: the model's mjrft:deform_every, else 1)",
+    )
+    r.add_argument(
+        "--deform-travel",
+        type=_nonnegative_float,
+        default=None,
+        metavar="CELLS",
+        help="instead of --deform-every, update the deforming ground once the intruders have "
+        "travelled CELLS cells since its last update (docs/terrain.md)",
     )
     r.add_argument(
         "--dynamic",

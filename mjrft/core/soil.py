@@ -68,6 +68,11 @@ SLOPE_TOLERANCE = 0.01
 SLOPE_SLACK = 1e-6
 #: Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per MjData.
 MAX_VERTICES = 2_000_000
+#: deform_cell = "auto" puts this many cells across the narrowest intruder's footprint (the
+#: middle extent of its bounding box): a 5 cm plate's rest depth is then within 7.1 % of the
+#: cell-free value, the Go2's feet depth within 1 % of a cell half as large
+#: (``python benchmarks/deform_convergence.py``; docs/terrain.md).
+CELLS_ACROSS = 10
 #: Work counters: updates, volume excavated [m^3], volume that found no rim [m^3], updates whose
 #: relaxation hit MAX_SWEEPS, triangles rasterised, footprint vertices at the edge ring, pairs of
 #: neighbouring vertices the relaxation compared (its work).
@@ -96,12 +101,32 @@ def grid_shape(region: np.ndarray, cell: float) -> tuple[int, int]:
     return nrow, ncol
 
 
+def auto_cell(widths) -> float:
+    """The cell [m] that puts CELLS_ACROSS cells across the narrowest of the intruders'
+    footprint widths [m] (deform_cell = "auto")."""
+    return float(min(widths)) / CELLS_ACROSS
+
+
+def fit_cell(region: np.ndarray, cell: float) -> float:
+    """cell [m], or the least multiple of it by a power of 1.05 whose grid over the region's
+    (2, 3) horizontal extent has at most MAX_VERTICES vertices."""
+    while math.prod(grid_shape(region, cell)) > MAX_VERTICES:
+        cell *= 1.05
+    return cell
+
+
 def grid_over(
-    initial: surface.Surface, region: np.ndarray, cell: float, repose_deg: float, every: int = 1
+    initial: surface.Surface,
+    region: np.ndarray,
+    cell: float,
+    repose_deg: float,
+    every: int = 1,
+    travel: float = 0.0,
 ) -> surface.Surface:
     """A SOIL surface with vertices every `cell` [m] over the region's (2, 3) horizontal extent,
     starting as `initial` (sampled at the vertices) with angle of repose repose_deg [deg],
-    following the intruders every `every` steps."""
+    following the intruders every `every` steps, or (every 0) once they may have travelled
+    `travel` cells since it last did (engine/deform.h, Due)."""
     lo = region[0, :2]
     nrow, ncol = grid_shape(region, cell)
     x = lo[0] + cell * np.arange(ncol)
@@ -112,6 +137,7 @@ def grid_over(
     prm[surface.KIND] = surface.SOIL
     prm[TAN_REPOSE] = math.tan(math.radians(repose_deg))
     prm[surface.EVERY] = every
+    prm[surface.TRAVEL] = travel
     return surface.Surface(prm, out.grid)
 
 

@@ -43,18 +43,21 @@ import numpy as np
 from mjrft.core import engine
 
 FLAT, PLANE, GRID, SOIL = 0, 1, 2, 3
-#: Slots of ``prm``; SOIL only: TAN_REPOSE, the tangent of the medium's angle of repose, and
-#: EVERY, the steps between updates of the ground (1: every step).
-KIND, Z0, GX, GY, X0, Y0, DX, DY, NCOL, NROW, ZMAX, TAN_REPOSE, EVERY = range(13)
-PRM_SIZE = 13
+#: Slots of ``prm``; SOIL only: TAN_REPOSE, the tangent of the medium's angle of repose; EVERY,
+#: the steps between updates of the ground (0: TRAVEL's rule); TRAVEL, the cells the intruders
+#: travel between updates (0: every step).
+KIND, Z0, GX, GY, X0, Y0, DX, DY, NCOL, NROW, ZMAX, TAN_REPOSE, EVERY, TRAVEL = range(14)
+PRM_SIZE = 14
 #: Head of a soil block: how far the highest point rose above prm[ZMAX] [m]; 1 once the grid
 #: followed a configuration; the time of that configuration [s]; the vertex box (r0, r1, c0, c1)
-#: still relaxing; the box of the intruders' last footprints. Then the offsets of h and of c
-#: [m] and the memory p [m], nrow * ncol each (row-major). All zero: the initial surface, so
-#: ``mj_resetData`` (which zeroes the engine's state) restores it.
+#: still relaxing; the box of the intruders' last footprints; how far [m] the intruders may have
+#: travelled since, and the time [s] that distance was last accumulated. Then the offsets of h
+#: and of c [m] and the memory p [m], nrow * ncol each (row-major). All zero: the initial
+#: surface, so ``mj_resetData`` (which zeroes the engine's state) restores it.
 SOIL_ZOFF, SOIL_DONE, SOIL_TIME = 0, 1, 2
 SOIL_PENDING, SOIL_FOOT = 3, 7
-SOIL_HEAD = 11
+SOIL_TRAVEL, SOIL_CLOCK = 11, 12
+SOIL_HEAD = 13
 #: An element within this height [m] above a SOIL surface still touches it: the grid follows an
 #: intruder's lower surface exactly, and rounding must not decide whether the intruder touches
 #: the floor it just pressed (0.1 um: far below a grain).

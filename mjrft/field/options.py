@@ -23,9 +23,12 @@ class SceneOptions:
         geom; the count comes from ``mjrft.geometry.triangles_for_tolerance``.
       low_speed: "stick", "free" or "off" (``mjrft:low_speed``; docs/stability.md).
       stick_reach: the low-speed treatment's reach (``mjrft:stick_reach``).
-      deform_cell: the deforming ground's cell [m], 0 off (``mjrft:deform_cell``).
+      deform_cell: the deforming ground's cell [m], "auto" (``mjrft.core.soil.CELLS_ACROSS``
+        cells across the narrowest intruder), 0 off (``mjrft:deform_cell``).
       repose: its angle of repose [deg] (``mjrft:repose``).
-      deform_every: steps between its updates (``mjrft:deform_every``).
+      deform_every: steps between its updates (``mjrft:deform_every``, default 1), or
+        deform_travel: the cells the intruders travel between its updates
+        (``mjrft:deform_travel``; 0: every step).
       dynamic: the dynamic RFT term's rho_c [kg/m^3] or (rho_c, lambda), 0 off
         (``mjrft:dynamic``).
       intruders: the geoms that feel the medium, instead of the MJCF's ``mjrft:intruders``
@@ -43,9 +46,10 @@ class SceneOptions:
     tolerance: float | None = None
     low_speed: str | None = None
     stick_reach: float | None = None
-    deform_cell: float | None = None
+    deform_cell: float | str | None = None
     repose: float | None = None
     deform_every: int | None = None
+    deform_travel: float | None = None
     dynamic: float | tuple[float, float] | None = None
     intruders: dict[str, Any] | None = None
     watch_sinking: bool | None = None

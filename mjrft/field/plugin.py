@@ -227,7 +227,8 @@ def load_model(
     MjSpec (changed in place) whose ``<custom>`` has an ``mjrft:`` section (docs/mjcf.md).
 
     options, overrides: SceneOptions (material, n_triangles, tolerance, low_speed, stick_reach,
-    deform_cell, repose, deform_every, dynamic, intruders, watch_sinking) on top of the MJCF's
+    deform_cell, repose, deform_every, deform_travel, dynamic, intruders, watch_sinking) on top
+    of the MJCF's
     values.
     Raises SceneError (a ValueError) naming the geom or field at fault, or ValueError naming the
     file MuJoCo could not read.

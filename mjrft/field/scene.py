@@ -33,6 +33,9 @@ MJCF (all names start with ``mjrft:``; they survive compilation, unlike classes)
       <numeric name="mjrft:deform_every" data="1"/>      steps between its updates (default 1;
                                                          k > 1 is k times cheaper, the ground
                                                          lagging the intruders by up to k steps)
+      <numeric name="mjrft:deform_travel" data="0.25"/>  instead, an update once the intruders
+                                                         have travelled this many cells
+                                                         (docs/terrain.md)
       <numeric name="mjrft:triangles" data="1000"/>      default triangles per primitive geom, or
       <numeric name="mjrft:tolerance" data="0.01"/>      a relative force tolerance instead (the
                                                          default: 0.01, counts by type and size)
@@ -85,6 +88,7 @@ PREFIX = "mjrft:"
 KEYS = {
     "text": (
         "material",
+        "deform_cell",
         "low_speed",
         "surface_hfield",
         "model",
@@ -105,6 +109,7 @@ KEYS = {
         "deform_cell",
         "repose",
         "deform_every",
+        "deform_travel",
         "mu_surf",
         "dynamic",
         "watch_sinking",
@@ -211,6 +216,11 @@ def _custom(model: mujoco.MjModel) -> dict[str, tuple[str, int]]:
             if key not in KEYS[kind]:
                 valid = ", ".join(f"<{k} name='{PREFIX}{v}'>" for k, vs in KEYS.items() for v in vs)
                 raise SceneError(f"unknown <{kind} name='{name}'> in <custom>; valid: {valid}")
+            if key in found:  # deform_cell: a number or the text "auto"
+                raise SceneError(
+                    f"<{found[key][0]} name='{name}'> and <{kind} name='{name}'> both in <custom>: "
+                    "give one"
+                )
             found[key] = (kind, i)
     return found
 
@@ -318,9 +328,10 @@ def scene_from_model(
     tolerance: float | None = None,
     low_speed: str | None = None,
     stick_reach: float | None = None,
-    deform_cell: float | None = None,
+    deform_cell: float | str | None = None,
     repose: float | None = None,
     deform_every: int | None = None,
+    deform_travel: float | None = None,
     dynamic: float | tuple[float, float] | None = None,
     intruders: dict[str, str | list[str]] | None = None,
     watch_sinking: bool | None = None,
@@ -330,9 +341,9 @@ def scene_from_model(
     dynamic: the dynamic RFT term's rho_c [kg/m^3], or (rho_c, lambda), as
     ``mjrft:dynamic``; 0 turns off a term the MJCF asks for.
 
-    deform_cell [m], repose [deg] and deform_every [steps]: the deforming ground
-    (``mjrft:deform_cell``, ``mjrft:repose``, ``mjrft:deform_every``); deform_cell = 0 turns
-    off a deformation the MJCF asks for.
+    deform_cell [m], repose [deg], deform_every [steps] and deform_travel [cells]: the
+    deforming ground (``mjrft:deform_cell``, ``mjrft:repose``, ``mjrft:deform_every``,
+    ``mjrft:deform_travel``); deform_cell = 0 turns off a deformation the MJCF asks for.
 
     tolerance: relative RMS force error per primitive geom; its triangle count comes from
     ``mjrft.geometry.triangles_for_tolerance``. low_speed ("stick", "free" or "off") and
@@ -379,11 +390,11 @@ def scene_from_model(
     surface_z = 0.0 if surface is None else float(surface[0])
     region = _region(model, custom)
     free_surface = _surface(model, custom, surface_z, region)
-    free_surface = _deforming(model, custom, free_surface, region, material,
-                              (deform_cell, repose, deform_every))  # fmt: skip
+    tagged = _tagged(model, custom, intruders)
+    free_surface = _deforming(model, custom, free_surface, region, material, tagged,
+                              (deform_cell, repose, deform_every, deform_travel))  # fmt: skip
     _warn_if_steep(model, custom, material, repose)
     default_tri, default_tol = _default_resolution(model, custom)
-    tagged = _tagged(model, custom, intruders)
     cap = _numeric_field(model, custom, "max_triangles", (1,), "one integer >= 12")
     cap = geometry.MAX_TRIANGLES if cap is None else int(cap[0])
     intruders = _intruders(model, tagged, int(default_tri), default_tol, cap)
@@ -581,21 +592,35 @@ def _dynamic_term(model: mujoco.MjModel, custom: dict, material: Material, overr
         raise SceneError(f"{where}: {exc}") from None
 
 
-def _deforming(model, custom, initial: Surface, region, material, options) -> Surface:
+def _deforming(model, custom, initial: Surface, region, material, tagged, options) -> Surface:
     """The deforming ground over the region if mjrft:deform_cell (or the cell of options, the
-    overrides (cell [m], repose [deg], every [steps]), None where not given) asks for it, else
-    the initial surface; checks the cell, the grid's size, the angle of repose, the update
-    period."""
-    cell, repose, every = options
-    where = f"<numeric name='{PREFIX}deform_cell'>" if cell is None else "deform_cell"
-    if cell is None:
+    overrides (cell [m] or "auto", repose [deg], every [steps], travel [cells]), None where not
+    given) asks for it, else the initial surface; checks the cell, the grid's size, the angle of
+    repose, the update rule. tagged: the intruders' geom ids ("auto" sizes the cell by them)."""
+    cell, repose, every, travel = options
+    where = "deform_cell"
+    if cell is None and custom.get("deform_cell", ("",))[0] == "text":
+        where = f"<text name='{PREFIX}deform_cell'>"
+        cell = _text(model, custom["deform_cell"][1])
+    elif cell is None:
+        where = f"<numeric name='{PREFIX}deform_cell'>"
         value = _numeric_field(model, custom, "deform_cell", (1,), "one cell size [m] > 0")
         cell = None if value is None else float(value[0])
+    if isinstance(cell, str):
+        if cell != "auto":
+            raise SceneError(f"{where} = {cell!r}: expected a cell size [m] > 0 or 'auto'")
+        if region is None:
+            raise SceneError(
+                f"{where} = 'auto': the deforming ground covers the medium's region: add "
+                f"<numeric name='{PREFIX}region' data='xmin ymin zmin xmax ymax zmax'/>"
+            )
+        cell = _auto_cell(model, tagged, region)
     if cell is None or cell == 0.0:
-        _warn_if_unused(model, custom, cell, repose, every)
+        _warn_if_unused(model, custom, cell, {"repose": repose, "deform_every": every,
+                                              "deform_travel": travel})  # fmt: skip
         return initial
     if not (math.isfinite(cell) and cell > 0.0):
-        raise SceneError(f"{where} = {cell!r}: expected a cell size > 0 [m] (e.g. 0.002)")
+        raise SceneError(f"{where} = {cell!r}: expected a cell size > 0 [m] (e.g. 0.002) or 'auto'")
     if region is None:
         raise SceneError(
             f"{where}: the deforming ground covers the medium's region: add <numeric name='"
@@ -616,22 +641,73 @@ def _deforming(model, custom, initial: Surface, region, material, options) -> Su
             f"angle of repose = {repose!r} deg ({PREFIX}repose): expected a value in (0, 90) "
             "degrees (dry sands and glass beads: 20-40)"
         )
-    if every is None:
+    every, travel = _update_rule(model, custom, every, travel)
+    return soil.grid_over(initial, region, cell, repose, every, travel)
+
+
+def _auto_cell(model: mujoco.MjModel, tagged, region: np.ndarray) -> float:
+    """The cell [m] of deform_cell = "auto": soil.auto_cell of the intruders' footprint widths
+    (the middle extent of each geom's bounding box), coarsened with a SceneWarning if the grid
+    over the region would pass soil.MAX_VERTICES."""
+    if not tagged:
+        raise SceneError("deform_cell = 'auto': there are no intruders to size the cell by")
+    widths = [2.0 * float(np.sort(model.geom_aabb[g, 3:])[1]) for g in tagged]
+    cell = soil.auto_cell(widths)
+    fitted = soil.fit_cell(region, cell)
+    if fitted > cell:
+        narrow = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(np.argmin(widths))) or ""
+        warnings.warn(
+            f"deform_cell = 'auto': {soil.CELLS_ACROSS} cells across the narrowest intruder "
+            f"('{narrow}', {min(widths) * 1e3:.3g} mm) would be {cell * 1e3:.3g} mm, and the grid "
+            f"over {PREFIX}region would pass {soil.MAX_VERTICES:,} vertices; using "
+            f"{fitted * 1e3:.3g} mm ({min(widths) / fitted:.1f} cells across: coarser than the "
+            "error docs/terrain.md states): give a smaller region or an explicit cell",
+            SceneWarning,
+            stacklevel=5,
+        )
+    return fitted
+
+
+def _update_rule(model, custom, every, travel) -> tuple[int, float]:
+    """(every [steps], travel [cells]) of the deforming ground's updates from the overrides
+    every and travel (None: not given) and the MJCF's mjrft:deform_every and
+    mjrft:deform_travel: every k >= 1 steps, or (every 0) once the intruders may have travelled
+    `travel` cells. An override replaces the MJCF's rule whichever key it uses; two keys from
+    one source are refused."""
+    if every is not None or travel is not None:
+        source = "deform_every and deform_travel"
+    else:
+        source = f"{PREFIX}deform_every and {PREFIX}deform_travel"
         value = _numeric_field(model, custom, "deform_every", (1,), "one whole number >= 1")
-        every = 1 if value is None else float(value[0])
-    if not (every == int(every) and every >= 1):
+        every = None if value is None else float(value[0])
+        value = _numeric_field(model, custom, "deform_travel", (1,), "one number of cells >= 0")
+        travel = None if value is None else float(value[0])
+    if every is not None and travel is not None:
+        raise SceneError(
+            f"{source} both given ({every!r} steps, {travel!r} cells): the ground follows the "
+            "intruders either every k steps or once they have travelled so many cells; give one"
+        )
+    if every is not None and not (every == int(every) and every >= 1):
         raise SceneError(
             f"deform_every = {every!r} ({PREFIX}deform_every): expected a whole number of steps "
             ">= 1 between updates of the ground (1: every step)"
         )
-    return soil.grid_over(initial, region, cell, repose, int(every))
+    if travel is not None and not (math.isfinite(travel) and travel >= 0.0):
+        raise SceneError(
+            f"deform_travel = {travel!r} ({PREFIX}deform_travel): expected a number of cells "
+            ">= 0 the intruders travel between updates of the ground (0: every step)"
+        )
+    if travel:
+        return 0, float(travel)
+    return 1 if every is None else int(every), 0.0
 
 
-def _warn_if_unused(model, custom, cell, repose, every) -> None:
+def _warn_if_unused(model, custom, cell, overrides: dict) -> None:
     """SceneWarning for each setting of the deforming ground given without one (cell: the
-    deform_cell override, 0 where it turns off the MJCF's ground; the MJCF's repose and
-    deform_every then go unwarned, since the override switches them off on purpose)."""
-    for key, override in (("repose", repose), ("deform_every", every)):
+    deform_cell override, 0 where it turns off the MJCF's ground; the MJCF's settings then go
+    unwarned, since the override switches them off on purpose). overrides: the settings' names
+    and override values (None: not given)."""
+    for key, override in overrides.items():
         if override is not None:
             given = f"{key} = {override!r}"
         elif key in custom and cell is None:

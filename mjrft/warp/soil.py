@@ -41,6 +41,8 @@ SOIL_PENDING = wp.constant(cs.SOIL_PENDING)
 SOIL_FOOT = wp.constant(cs.SOIL_FOOT)
 SOIL_ZOFF = wp.constant(cs.SOIL_ZOFF)
 SOIL_HEAD = wp.constant(cs.SOIL_HEAD)
+SOIL_TRAVEL = wp.constant(cs.SOIL_TRAVEL)
+SOIL_CLOCK = wp.constant(cs.SOIL_CLOCK)
 N_STATS = core_soil.N_SOIL_STATS
 #: Slots of the counters (engine soil.h SoilStat).
 UPDATES, EXCAVATED, UNPLACED, UNRELAXED, RASTERISED, EDGE, VISITS = (
@@ -862,6 +864,24 @@ def finish(sf: Surface, gr: Ground, w: int, top: f64, time: f64):
 
 
 @wp.func
+def culled(el: Elements, medium: Medium, sf: Surface, w: int, g: int,
+           geom_xpos: wp.array2d(dtype=wp.vec3)) -> bool:  # fmt: skip
+    """Tagged geom g cannot touch the medium: above the surface or outside the region (engine
+    Culled)."""
+    r = el.tgeom_rbound[g]
+    if r <= _Z:
+        return False
+    cen = widen(geom_xpos[w, el.tgeom_geomid[g]])
+    if cen[2] - r >= surface.highest_near(sf, cen[0], cen[1], r):
+        return True
+    if medium.use_region != 0:
+        for q in range(3):
+            if cen[q] + r < medium.region_lo[q] or cen[q] - r > medium.region_hi[q]:
+                return True
+    return False
+
+
+@wp.func
 def footprints(el: Elements, medium: Medium, sf: Surface, gr: Ground, w: int,
                tbody_bodyid: wp.array(dtype=int), xpos: wp.array2d(dtype=wp.vec3),
                xmat: wp.array2d(dtype=wp.mat33), geom_xpos: wp.array2d(dtype=wp.vec3)):  # fmt: skip
@@ -879,18 +899,8 @@ def footprints(el: Elements, medium: Medium, sf: Surface, gr: Ground, w: int,
         pos = widen(xpos[w, b])
         g0 = el.tbody_geomadr[k]
         for g in range(g0, g0 + el.tbody_geomnum[k]):
-            r = el.tgeom_rbound[g]
-            if r > _Z:  # culled (engine Culled): above the surface or outside the region
-                cen = widen(geom_xpos[w, el.tgeom_geomid[g]])
-                if cen[2] - r >= surface.highest_near(sf, cen[0], cen[1], r):
-                    continue
-                if medium.use_region != 0:
-                    out = int(0)
-                    for q in range(3):
-                        if cen[q] + r < medium.region_lo[q] or cen[q] - r > medium.region_hi[q]:
-                            out = 1
-                    if out != 0:
-                        continue
+            if culled(el, medium, sf, w, g, geom_xpos):
+                continue
             e0 = el.tgeom_elemadr[g]
             nr = footprint(sf, gr, w, e0, e0 + el.tgeom_elemnum[g], rot, pos, k, kb, top)
             gr.stats[w, RASTERISED] = gr.stats[w, RASTERISED] + f64(nr)
@@ -931,14 +941,47 @@ def relax_boxes(sf: Surface, gr: Ground, w: int, known: bool):
 
 
 @wp.func
-def due(sf: Surface, w: int, now: f64, dt: f64) -> bool:
-    """The ground has not yet followed the configuration at time now [s] (engine Due)."""
+def intruder_speed(el: Elements, medium: Medium, sf: Surface, w: int,
+                   tbody_bodyid: wp.array(dtype=int), tbody_rootid: wp.array(dtype=int),
+                   cvel: wp.array2d(dtype=wp.spatial_vector),
+                   subtree_com: wp.array2d(dtype=wp.vec3),
+                   geom_xpos: wp.array2d(dtype=wp.vec3)) -> f64:  # fmt: skip
+    """The fastest speed [m/s] of a point of a tagged geom that may touch the medium: its
+    centre's speed plus its angular speed times its bounding radius (engine IntruderSpeed)."""
+    fastest = _Z
+    for k in range(el.tbody_geomadr.shape[0]):
+        tw = cvel[w, tbody_bodyid[k]]
+        om = wp.vec3d(f64(tw[0]), f64(tw[1]), f64(tw[2]))
+        v0 = wp.vec3d(f64(tw[3]), f64(tw[4]), f64(tw[5]))
+        o = widen(subtree_com[w, tbody_rootid[k]])
+        g0 = el.tbody_geomadr[k]
+        for g in range(g0, g0 + el.tbody_geomnum[k]):
+            if culled(el, medium, sf, w, g, geom_xpos):
+                continue
+            v = v0 + wp.cross(om, widen(geom_xpos[w, el.tgeom_geomid[g]]) - o)
+            fastest = wp.max(fastest, wp.length(v) + wp.length(om) * el.tgeom_rbound[g])
+    return fastest
+
+
+@wp.func
+def due(sf: Surface, w: int, now: f64, dt: f64, speed: f64) -> bool:
+    """The ground has not yet followed the configuration at time now [s] (engine Due); speed
+    [m/s]: intruder_speed's, accumulated into the soil block under the travel rule."""
     last = sf.soil[w, SOIL_TIME]
     if sf.soil[w, SOIL_DONE] == _Z or now < last:
         return True
-    if sf.every <= f64(1.0):
+    if sf.every >= f64(1.0):
+        if sf.every == f64(1.0):
+            return last != now
+        return now - last > (sf.every - f64(0.5)) * dt
+    limit = sf.travel * wp.min(sf.dx, sf.dy)
+    if not (limit > _Z):
         return last != now
-    return now - last > (sf.every - f64(0.5)) * dt
+    clock = sf.soil[w, SOIL_CLOCK]
+    if now > clock:
+        sf.soil[w, SOIL_TRAVEL] = sf.soil[w, SOIL_TRAVEL] + speed * (now - wp.max(clock, last))
+        sf.soil[w, SOIL_CLOCK] = now
+    return sf.soil[w, SOIL_TRAVEL] >= limit
 
 
 @wp.kernel
@@ -960,7 +1003,11 @@ def deform_kernel(
     sf.w = w
     gr.status[w] = -1
     now = f64(time[w])
-    if not due(sf, w, now, f64(timestep[w % timestep.shape[0]])):
+    speed = _Z
+    if sf.every < f64(1.0) and sf.travel > _Z:
+        speed = intruder_speed(el, medium, sf, w, tbody_bodyid, tbody_rootid, cvel, subtree_com,
+                               geom_xpos)  # fmt: skip
+    if not due(sf, w, now, f64(timestep[w % timestep.shape[0]]), speed):
         return
     nk = gr.nk
     allbox = 4 * nk
@@ -1000,3 +1047,5 @@ def deform_kernel(
     gr.box[w, fp + 1] = gr.stats[w, EXCAVATED]
     gr.box[w, fp + 2] = sf.soil[w, SOIL_TIME]
     gr.box[w, fp + 3] = f64(1.0)
+    sf.soil[w, SOIL_TRAVEL] = _Z
+    sf.soil[w, SOIL_CLOCK] = now

@@ -30,8 +30,9 @@ SOIL_CONTACT = wp.constant(wp.float64(s.SOIL_CONTACT))
 class Surface:
     """kind (FLAT, PLANE, GRID, SOIL); z0 [m]; a plane's gradient gx, gy; a grid's corner x0,
     y0 [m], spacing dx, dy [m], ncol x nrow vertices of heights grid [m] and its highest point
-    zmax; a deforming grid's tangent of repose, steps between updates (every), per-world soil
-    blocks soil (nworld, block) and the world w whose row is read."""
+    zmax; a deforming grid's tangent of repose, steps between updates (every; 0: travel's
+    rule), cells the intruders travel between updates (travel), per-world soil blocks soil
+    (nworld, block) and the world w whose row is read."""
 
     kind: int
     z0: f64
@@ -47,6 +48,7 @@ class Surface:
     grid: wp.array2d(dtype=f64)
     tan_repose: f64
     every: f64
+    travel: f64
     soil: wp.array2d(dtype=f64)
     w: int
 
@@ -63,6 +65,7 @@ def from_core(surf: s.Surface, device) -> Surface:
     out.grid = wp.array(np.ascontiguousarray(surf.grid, dtype=np.float64), dtype=f64, device=device)
     if out.kind == s.SOIL:
         out.tan_repose, out.every = f64(p[s.TAN_REPOSE]), f64(p[s.EVERY])
+        out.travel = f64(p[s.TRAVEL])
     out.soil = wp.zeros((1, 1), dtype=f64, device=device)  # per world: with_soil
     out.w = 0
     return out
