@@ -100,7 +100,9 @@ bool Due(const mjModel* m, const mjData* d, const Tables& t, State& s) {
     return now - last > (every - 0.5) * m->opt.timestep;
   }
   f64 limit = prm[surface::kTravel] * std::min(prm[surface::kDx], prm[surface::kDy]);
-  if (!(limit > 0.0)) return last != now;
+  const f64* pending = block + surface::kSoilPending;  // slopes the last update left to relax
+  bool relaxing = pending[1] > pending[0] && pending[3] > pending[2];
+  if (!(limit > 0.0) || relaxing) return last != now;
   f64 clock = block[surface::kSoilClock];
   if (now > clock) {
     block[surface::kSoilTravel] += IntruderSpeed(d, t, s) * (now - std::max(clock, last));
@@ -124,6 +126,12 @@ int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
                      print[0] == s.soil_stats[soil::kStatUpdates] &&
                      print[1] == s.soil_stats[soil::kStatExcavated] &&
                      print[2] == block[surface::kSoilTime];
+  // The last update's press marks, within its footprints' box, which the state keeps.
+  const f64* foot = block + surface::kSoilFoot;
+  if (foot[1] > foot[0] && foot[3] > foot[2]) {
+    soil::Unmark(prm, block, static_cast<i64>(foot[0]), static_cast<i64>(foot[1]) - 1,
+                 static_cast<i64>(foot[2]), static_cast<i64>(foot[3]) - 1);
+  }
   Footprints(d, t, s, surface::Ceiling(prm, block));
   const f64* allbox = s.soil_box + 4 * nk;
 
@@ -181,6 +189,7 @@ int Update(const mjModel* m, const mjData* d, const Tables& t, State& s) {
   bool converged = soil::Relax(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_queue, sweep,
                                nk + 2, pending, &top, s.soil_stats);
   HeadStore(block, surface::kSoilPending, pending, !converged);
+  soil::Mark(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_box, nk);
   soil::Finish(prm, grid, block, s.soil_floor, s.soil_owner, s.soil_box, nk, top, d->time);
   for (i64 c = 0; c < 4 * nk; c++) prev[c] = s.soil_box[c];
   print[0] = s.soil_stats[soil::kStatUpdates];

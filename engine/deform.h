@@ -20,7 +20,8 @@ namespace mjrft::deform {
 // intruders may have travelled mjrft:deform_travel cells since (each pass of a new time adds
 // the time passed times the fastest speed of a point of a tagged geom that may touch the
 // medium, its centre's speed plus its angular speed times its bounding radius; the distance
-// lives in the soil block); and whenever the time went back (a reset or a restored state).
+// lives in the soil block), or at every new time while the last update left slopes to relax;
+// and whenever the time went back (a reset or a restored state).
 bool Due(const mjModel* m, const mjData* d, const Tables& t, State& s);
 
 // Moves the ground of this mjData (s.soil) to the intruders' current configuration (d->xpos,

@@ -50,9 +50,10 @@ static int GeomWrench(const mjData* d, const Tables& t, const State& s, int g, c
   i64 b = t.tbody_bodyid[t.tgeom_tbody[g]];
   i64 start = t.tgeom_elemadr[g];
   i64 stop = start + t.tgeom_elemnum[g];
-  return kernel::BodyWrench(kernel::ElementsOf(t), start, stop, kernel::MediumOf(t, s), s.soil,
-                            d->xmat + 9 * b, d->xpos + 3 * b, omega, v_ref, p_ref, com, wrench,
-                            elem_force, nullptr);
+  kernel::Medium med = kernel::MediumOf(t, s);
+  med.body = static_cast<f64>(t.tgeom_tbody[g] + 1);
+  return kernel::BodyWrench(kernel::ElementsOf(t), start, stop, med, s.soil, d->xmat + 9 * b,
+                            d->xpos + 3 * b, omega, v_ref, p_ref, com, wrench, elem_force, nullptr);
 }
 
 int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k, const f64* v,

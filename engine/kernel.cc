@@ -118,7 +118,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
         if (med.memo.depth && med.memo.pass_of[2 * i] == med.memo.pass) {
           depth = med.memo.depth[4 * i];
         } else {
-          depth = surface::Depth(prm, med.surface_grid, soil, px, py, pz);
+          depth = surface::Depth(prm, med.surface_grid, soil, px, py, pz, med.body);
           if (med.memo.depth) {
             med.memo.depth[4 * i] = depth;
             med.memo.pass_of[2 * i] = med.memo.pass;
@@ -168,7 +168,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       k = law::Gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, e.area[i], true);
     }
     quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm, med.surface_grid,
-                             soil, med.memo);
+                             soil, med.body, med.memo);
     int nc = 0;
     k = quadrature::Triage(buf, idx, k, later, held, nl, e.area, e.reach, band, &nc);
     for (int j = 0; j < nc; j++) {

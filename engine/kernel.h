@@ -42,6 +42,8 @@ struct Medium {
   // (null: none kept). A pass evaluates a body at one pose, but the low-speed treatment asks
   // for its wrench at several twists; the look-ups, not the law, are then most of the work.
   quadrature::DepthMemo memo = {};
+  // k + 1 when the elements are tagged body k's (surface::SoilDepth), 0 for none.
+  f64 body = 0.0;
 };
 
 // The medium of a plugin instance's tables; with a state, the memo of its pass.

@@ -157,7 +157,8 @@ bool Submerged(const mjData* d, const Tables& t, const State& s, int k) {
         x += rot[c] * p[c];
         y += rot[3 + c] * p[c];
       }
-      if (surface::Depth(t.surface_prm, t.surface_grid, s.soil, x, y, z) > 0.0) return true;
+      if (surface::Depth(t.surface_prm, t.surface_grid, s.soil, x, y, z, k + 1.0) > 0.0)
+        return true;
     }
   }
   return false;

@@ -196,7 +196,7 @@ void Blend(const f64* pr, const f64* nb, f64 area, f64 depth0, f64 band_r, f64 d
 
 void CornerValues(const f64* patch, const f64* cent, const i64* later, Held& held, int nl,
                   const f64* rot, const f64* ang_b, const f64* lin_b, const f64* prm,
-                  const f64* grid, const f64* soil, const DepthMemo& memo) {
+                  const f64* grid, const f64* soil, f64 body, const DepthMemo& memo) {
   f64 gx = ang_b[0], gy = ang_b[1], gz = ang_b[2];
   f64 lx = lin_b[0], ly = lin_b[1], lz = lin_b[2];
   f64 r20 = rot[6], r21 = rot[7], r22 = rot[8];
@@ -248,7 +248,7 @@ void CornerValues(const f64* patch, const f64* cent, const i64* later, Held& hel
       held[kHeldD + q][j] = surface::Depth(
           prm, grid, soil, held[kHeldPoint][j] + (rot[0] * o0 + rot[1] * o1 + rot[2] * o2),
           held[kHeldPoint + 1][j] + (rot[3] * o0 + rot[4] * o1 + rot[5] * o2),
-          held[kHeldPoint + 2][j] + (r20 * o0 + r21 * o1 + r22 * o2));
+          held[kHeldPoint + 2][j] + (r20 * o0 + r21 * o1 + r22 * o2), body);
     }
     if (kept) {
       for (int q = 0; q < 3; q++) kept[q] = held[kHeldD + q][j];

@@ -61,11 +61,12 @@ struct DepthMemo {
 // n . v is taken in the body frame, v = lin_b + ang_b x c at the corner c (the body's motion
 // expressed in its frame), so corner normals are not rotated; a corner's depth is measured
 // vertically at its world position (surface.h). patch (n, kPatchSize), cent (n, 3) body-frame
-// centroids; rot (9) body -> world, row-major; prm, grid, soil the surface; memo the depths of
-// an uneven surface's corners this pass has looked up already, read and written.
+// centroids; rot (9) body -> world, row-major; prm, grid, soil the surface, body its tagged
+// body + 1 (surface::SoilDepth); memo the depths of an uneven surface's corners this pass has
+// looked up already, read and written.
 void CornerValues(const f64* patch, const f64* cent, const i64* later, Held& held, int nl,
                   const f64* rot, const f64* ang_b, const f64* lin_b, const f64* prm,
-                  const f64* grid, const f64* soil, const DepthMemo& memo);
+                  const f64* grid, const f64* soil, f64 body, const DepthMemo& memo);
 
 // Sorts the held elements later[0, nl) by their corner values: those trailing everywhere or dry
 // leave; those neither the free surface nor the leading boundary crosses, beyond the band

@@ -642,6 +642,29 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
   return false;
 }
 
+void Mark(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+          const f64* boxes, i64 nbox) {
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  f64* q = soil + kSoilHead + 3 * ncol * static_cast<i64>(prm[kNrow]);
+  for (i64 k = 0; k < nbox; k++) {
+    const f64* box = boxes + 4 * k;
+    for (i64 r = static_cast<i64>(box[0]); r <= static_cast<i64>(box[1]); r++) {
+      for (i64 c = static_cast<i64>(box[2]); c <= static_cast<i64>(box[3]); c++) {
+        i64 v = r * ncol + c;
+        if (owner[v] == k && Contact(prm, grid, soil, floor, r, c)) q[v] = static_cast<f64>(k + 1);
+      }
+    }
+  }
+}
+
+void Unmark(const f64* prm, f64* soil, i64 r0, i64 r1, i64 c0, i64 c1) {
+  i64 ncol = static_cast<i64>(prm[kNcol]);
+  f64* q = soil + kSoilHead + 3 * ncol * static_cast<i64>(prm[kNrow]);
+  for (i64 r = r0; r <= r1; r++) {
+    for (i64 c = c0; c <= c1; c++) q[r * ncol + c] = 0.0;
+  }
+}
+
 void Finish(const f64* prm, const f64* grid, f64* soil, f64* floor, i64* owner, const f64* boxes,
             i64 nbox, f64 top, f64 time) {
   i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);

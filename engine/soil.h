@@ -6,7 +6,8 @@
 //
 // The grid (surface.h, kind kSoil) has vertices every dx, dy over the medium's region; vertex v
 // stands for the column of one cell area centred on it. Its state, per mjData (the soil block,
-// State::soil), is its surface height h, its compacted level c <= h and its memory p >= 0. The
+// State::soil), is its surface height h, its compacted level c <= h, its memory p >= 0 and which
+// intruder pressed on it at the last update (Mark; the material beside an intruder). The
 // resisting depth of a point at height z in the column is (h + p) - z below c and h - z between
 // c and h (surface::SoilDepth). Pristine ground has c = h, p = 0.
 //
@@ -71,7 +72,7 @@ constexpr f64 kSlopeTolerance = 0.01;
 // The least excess [m] that moves material (1 um: a thousandth of a 1 mm grain; rounding must
 // not keep a pair moving).
 constexpr f64 kSlopeSlack = 1e-6;
-// Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per mjData.
+// Largest grid accepted (vertices): its soil block then takes 4 x 8 bytes per vertex per mjData.
 constexpr i64 kMaxVertices = 2000000;
 // Slots of soil_stats: updates, volume excavated [m^3], volume that found no rim [m^3], updates
 // whose relaxation hit kMaxSweeps, triangles rasterised, footprint vertices at the edge ring,
@@ -148,6 +149,15 @@ void Deposit(const f64* prm, const f64* grid, f64* soil, const f64* floor, const
 // floor).
 bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* mark, i64* queue,
            const f64* boxes, i64 nbox, f64* pending, f64* top, f64* stats);
+
+// Records, over the nbox vertex boxes (nbox x 4; box k intruder k's footprint), the intruder
+// that presses on each vertex (owner k, its floor at the surface): the press mark q = k + 1 of
+// surface::SoilDepth.
+void Mark(const f64* prm, const f64* grid, f64* soil, const f64* floor, const i64* owner,
+          const f64* boxes, i64 nbox);
+
+// Clears the press marks over vertex rows r0..r1 and columns c0..c1.
+void Unmark(const f64* prm, f64* soil, i64 r0, i64 r1, i64 c0, i64 c1);
 
 // Closes an update: clears floor and owner over the nbox vertex boxes (nbox x 4: the
 // footprints; and one vertex around each), raises the ceiling (soil[kSoilZoff]) to the highest

@@ -61,6 +61,39 @@ Levels SoilLevels(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y
 
 }  // namespace
 
+f64 BesideDepth(const f64* prm, const f64* grid, const f64* soil, const Cell& k, const i64* v,
+                const bool* pressed, f64 z) {
+  i64 n = static_cast<i64>(prm[kNcol]) * static_cast<i64>(prm[kNrow]);
+  const f64* oh = soil + kSoilHead;
+  f64 h[4], c[4], p[4], floor = -std::numeric_limits<f64>::infinity();
+  int free = -1;
+  for (int q = 0; q < 4; q++) {
+    h[q] = grid[v[q]] + oh[v[q]];
+    c[q] = grid[v[q]] + oh[n + v[q]];
+    p[q] = oh[2 * n + v[q]];
+    if (pressed[q]) {
+      floor = std::max(floor, h[q]);
+    } else if (free < 0 || h[q] > h[free]) {
+      free = q;
+    }
+  }
+  if (z >= floor + kSoilContact) {  // beside the intruder: the free column up to its side
+    for (int q = 0; q < 4; q++) {
+      if (!pressed[q]) continue;
+      h[q] = h[free];
+      c[q] = c[free];
+      p[q] = p[free];
+    }
+  }
+  f64 hz = Tri(h[0], h[1], h[2], h[3], k.fu, k.fv, k.upper);
+  if (z >= hz + kSoilContact) return hz - z;
+  f64 depth = std::max(hz - z, 0.0);
+  if (z < Tri(c[0], c[1], c[2], c[3], k.fu, k.fv, k.upper) + kSoilContact) {
+    depth += Tri(p[0], p[1], p[2], p[3], k.fu, k.fv, k.upper);
+  }
+  return depth;
+}
+
 f64 Height(const f64* prm, const f64* grid, const f64* soil, f64 x, f64 y) {
   f64 kind = prm[kKind];
   if (kind == kFlat) return prm[kZ0];

@@ -7,11 +7,12 @@ import pytest
 
 from mjrft.app import cli, simulate
 
-# A blade 1 cm deep dragged along +x at 0.1 m/s (the keyframe's control) towards the edge of a
-# region that ends at x = 4 cm: 0.9 s takes it 9 cm, past the edge.
+# A blade 1 cm deep and 4 cm wide dragged along +x at 0.1 m/s (the keyframe's control) towards
+# the edge of a region that ends at x = 4 cm, 1 cm beside each of its sides: 0.9 s takes it 9 cm,
+# past the edge.
 BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
 <custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.05 -0.04 -0.1 {x_max} 0.04 0.05"/>
+<numeric name="mjrft:region" data="-0.05 -0.03 -0.1 {x_max} 0.03 0.05"/>
 <numeric name="mjrft:deform_cell" data="0.0025"/>
 <tuple name="mjrft:intruders"><element objtype="geom" objname="blade" prm="400"/></tuple></custom>
 <worldbody><body name="blade"><joint name="x" type="slide" axis="1 0 0"/>

@@ -133,7 +133,7 @@ def test_each_worlds_ground_is_the_engines(xml, ctrl, nstep):
     assert np.all(excavated > 1e-6)  # each world cut its footprint: the test has teeth
     assert not np.allclose(got[0], got[1])  # the worlds differ
     np.testing.assert_allclose(got, want, rtol=0, atol=GROUND_ATOL)
-    n = (got.shape[1] - cs.SOIL_HEAD) // 3
+    n = (got.shape[1] - cs.SOIL_HEAD) // cs.SOIL_LEVELS
     for w in range(len(got)):
         volume = got[w, cs.SOIL_HEAD : cs.SOIL_HEAD + n].sum() * 0.0025**2
         assert abs(volume) <= VOLUME_RTOL * excavated[w]

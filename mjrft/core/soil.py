@@ -66,11 +66,11 @@ SLOPE_TOLERANCE = 0.01
 #: The least excess [m] that moves material (1 um: a thousandth of a 1 mm grain; rounding must
 #: not keep a pair moving).
 SLOPE_SLACK = 1e-6
-#: Largest grid accepted (vertices): its soil block then takes 3 x 8 bytes per vertex per MjData.
+#: Largest grid accepted (vertices): its soil block then takes 4 x 8 bytes per vertex per MjData.
 MAX_VERTICES = 2_000_000
 #: deform_cell = "auto" puts this many cells across the narrowest intruder's footprint (the
 #: middle extent of its bounding box): a 5 cm plate's rest depth is then within 7.1 % of the
-#: cell-free value, the Go2's feet depth within 1 % of a cell half as large
+#: cell-free value, the Go2's feet depth within 1.3 % of a cell half as large
 #: (``python benchmarks/deform_convergence.py``; docs/terrain.md).
 CELLS_ACROSS = 10
 #: Work counters: updates, volume excavated [m^3], volume that found no rim [m^3], updates whose

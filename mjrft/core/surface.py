@@ -51,13 +51,16 @@ PRM_SIZE = 14
 #: Head of a soil block: how far the highest point rose above prm[ZMAX] [m]; 1 once the grid
 #: followed a configuration; the time of that configuration [s]; the vertex box (r0, r1, c0, c1)
 #: still relaxing; the box of the intruders' last footprints; how far [m] the intruders may have
-#: travelled since, and the time [s] that distance was last accumulated. Then the offsets of h
-#: and of c [m] and the memory p [m], nrow * ncol each (row-major). All zero: the initial
-#: surface, so ``mj_resetData`` (which zeroes the engine's state) restores it.
+#: travelled since, and the time [s] that distance was last accumulated. Then SOIL_LEVELS levels
+#: of nrow * ncol each (row-major): the offsets of h and of c [m], the memory p [m] and the press
+#: mark (k + 1 where tagged body k pressed on the vertex at the last update, 0 none; engine
+#: surface::SoilDepth). All zero: the initial surface, so ``mj_resetData`` (which zeroes the
+#: engine's state) restores it.
 SOIL_ZOFF, SOIL_DONE, SOIL_TIME = 0, 1, 2
 SOIL_PENDING, SOIL_FOOT = 3, 7
 SOIL_TRAVEL, SOIL_CLOCK = 11, 12
 SOIL_HEAD = 13
+SOIL_LEVELS = 4
 #: An element within this height [m] above a SOIL surface still touches it: the grid follows an
 #: intruder's lower surface exactly, and rounding must not decide whether the intruder touches
 #: the floor it just pressed (0.1 um: far below a grain).
@@ -66,7 +69,7 @@ SOIL_CONTACT = 1e-7
 
 def soil_block(nrow: int, ncol: int) -> int:
     """Size of the soil block of an nrow x ncol SOIL grid (the engine state's ``soil``)."""
-    return SOIL_HEAD + 3 * nrow * ncol
+    return SOIL_HEAD + SOIL_LEVELS * nrow * ncol
 
 
 def height(prm: np.ndarray, grid: np.ndarray, soil: np.ndarray | None, x, y):

@@ -630,7 +630,7 @@ def _deforming(model, custom, initial: Surface, region, material, tagged, option
     if nrow * ncol > soil.MAX_VERTICES:
         raise SceneError(
             f"{where} = {cell:g} m: the grid over {PREFIX}region would have {nrow} x {ncol} = "
-            f"{nrow * ncol:,} vertices ({24 * nrow * ncol / 2**20:.0f} MiB per MjData), over the "
+            f"{nrow * ncol:,} vertices ({32 * nrow * ncol / 2**20:.0f} MiB per MjData), over the "
             f"cap of {soil.MAX_VERTICES:,}; use a coarser cell or a smaller region"
         )
     if repose is None:

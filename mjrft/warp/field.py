@@ -115,7 +115,7 @@ def element_kernel(
         q = quadrature_point(
             elem_pos[i], elem_normal[i], elem_area[i], elem_reach[i], elem_patch, i, rot,
             widen(xpos[w, b]), omega, v_ref, widen(subtree_com[w, tbody_rootid[k]]),
-            sf, medium.use_region, medium.region_lo, medium.region_hi,
+            sf, f64(k + 1), medium.use_region, medium.region_lo, medium.region_hi,
         )  # fmt: skip
         if q.w > f64(0.0):
             f = element_force(q.n, q.v, q.w, q.a, medium.co, medium.ay, medium.zeta, medium.lam_rho)

@@ -122,7 +122,8 @@ def twist_wrench(
         for i in range(e0, e0 + el.tgeom_elemnum[g]):
             q = quadrature_point(
                 el.pos[i], el.normal[i], el.area[i], el.reach[i], el.patch, i, rot, origin,
-                omega, v, com, sf, medium.use_region, medium.region_lo, medium.region_hi,
+                omega, v, com, sf, f64(k + 1), medium.use_region, medium.region_lo,
+                medium.region_hi,
             )  # fmt: skip
             if q.w > _Z:
                 fe = element_force(

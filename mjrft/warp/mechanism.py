@@ -246,7 +246,7 @@ def submerged(
                 if p[2] < top:
                     return True
                 continue
-            if surface.depth(sf, p) > _Z:
+            if surface.depth(sf, p, f64(k + 1)) > _Z:
                 return True
     return False
 

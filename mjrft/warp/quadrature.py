@@ -194,18 +194,18 @@ def _blend(
 def quadrature_point(
     cent: vec3d, n_body: vec3d, area: f64, reach: f64, patch: wp.array2d(dtype=f64), i: int,
     rot: wp.mat33d, origin: vec3d, omega: vec3d, v_ref: vec3d, p_ref: vec3d, sf: Surface,
-    use_region: int, region_lo: vec3d, region_hi: vec3d,
+    body: f64, use_region: int, region_lo: vec3d, region_hi: vec3d,
 ) -> Point:  # fmt: skip
     """Where element i (body frame: centroid cent, unit normal n_body, area, reach, patch row)
     of a body at rot, origin moving with omega at v_ref at p_ref (world) is evaluated under
-    the surface sf (depth measured vertically)."""
+    the surface sf (depth measured vertically; body: k + 1 for tagged body k, surface.depth)."""
     out = Point()
     p = rot * cent + origin
     depth = surface.ceiling(sf) - p[2]  # an element above the ceiling is dry wherever it is
     if depth <= -_BAND * reach:
         return out
     if sf.kind != surface.FLAT:
-        depth = surface.depth(sf, p)
+        depth = surface.depth(sf, p, body)
         if depth <= -_BAND * reach:
             return out
     if use_region != 0:
@@ -235,7 +235,7 @@ def quadrature_point(
             if sf.kind == surface.FLAT:
                 d[k] = sf.z0 - (p[2] + (rot * o)[2])
             else:
-                d[k] = surface.depth(sf, p + rot * o)
+                d[k] = surface.depth(sf, p + rot * o, body)
         if (s[0] < _Z and s[1] < _Z and s[2] < _Z) or (d[0] <= _Z and d[1] <= _Z and d[2] <= _Z):
             return out
         whole = s[0] > _Z and s[1] > _Z and s[2] > _Z and d[0] > _Z and d[1] > _Z and d[2] > _Z

@@ -839,6 +839,32 @@ def head_store(sf: Surface, gr: Ground, w: int, at: int, bx: int, keep: bool):
 
 
 @wp.func
+def mark(sf: Surface, gr: Ground, w: int):
+    """The press marks over the footprint boxes (rows 0..nk-1): k + 1 where intruder k presses
+    on the vertex (engine Mark)."""
+    q0 = SOIL_HEAD + 3 * sf.ncol * sf.nrow
+    for k in range(gr.nk):
+        bx = 4 * k
+        for r in range(int(gr.box[w, bx]), int(gr.box[w, bx + 1]) + 1):
+            for c in range(int(gr.box[w, bx + 2]), int(gr.box[w, bx + 3]) + 1):
+                if gr.owner[w, r * sf.ncol + c] == k and contact(sf, gr, w, r, c):
+                    sf.soil[w, q0 + r * sf.ncol + c] = f64(k + 1)
+
+
+@wp.func
+def unmark(sf: Surface, w: int):
+    """Clears the press marks over the last update's footprints' box (the soil block's
+    SOIL_FOOT; engine Unmark)."""
+    q0 = SOIL_HEAD + 3 * sf.ncol * sf.nrow
+    if sf.soil[w, SOIL_FOOT + 1] > sf.soil[w, SOIL_FOOT] and (
+        sf.soil[w, SOIL_FOOT + 3] > sf.soil[w, SOIL_FOOT + 2]
+    ):
+        for r in range(int(sf.soil[w, SOIL_FOOT]), int(sf.soil[w, SOIL_FOOT + 1])):
+            for c in range(int(sf.soil[w, SOIL_FOOT + 2]), int(sf.soil[w, SOIL_FOOT + 3])):
+                sf.soil[w, q0 + r * sf.ncol + c] = _Z
+
+
+@wp.func
 def finish(sf: Surface, gr: Ground, w: int, top: f64, time: f64):
     """Clears floor and owner over the footprint boxes (rows 0..nk-1) and one vertex around
     each, raises the ceiling to the highest of top [m] and the surface there, records the time
@@ -975,7 +1001,9 @@ def due(sf: Surface, w: int, now: f64, dt: f64, speed: f64) -> bool:
             return last != now
         return now - last > (sf.every - f64(0.5)) * dt
     limit = sf.travel * wp.min(sf.dx, sf.dy)
-    if not (limit > _Z):
+    relaxing = sf.soil[w, SOIL_PENDING + 1] > sf.soil[w, SOIL_PENDING]
+    relaxing = relaxing and sf.soil[w, SOIL_PENDING + 3] > sf.soil[w, SOIL_PENDING + 2]
+    if not (limit > _Z) or relaxing:  # no travel rule, or slopes left to relax
         return last != now
     clock = sf.soil[w, SOIL_CLOCK]
     if now > clock:
@@ -1016,6 +1044,7 @@ def deform_kernel(
     known = known and gr.box[w, fp] == gr.stats[w, UPDATES]
     known = known and gr.box[w, fp + 1] == gr.stats[w, EXCAVATED]
     known = known and gr.box[w, fp + 2] == sf.soil[w, SOIL_TIME]
+    unmark(sf, w)
     footprints(el, medium, sf, gr, w, tbody_bodyid, xpos, xmat, geom_xpos)
     bad = int(-1)
     for k in range(nk):  # excavation and deposition, intruder by intruder
@@ -1039,6 +1068,7 @@ def deform_kernel(
     pend = 4 * (3 * nk + 4)
     converged, top = relax(sf, gr, w, sweep, nk + 2, pend, -_INF)
     head_store(sf, gr, w, SOIL_PENDING, pend, not converged)
+    mark(sf, gr, w)
     finish(sf, gr, w, top, now)
     prev = 4 * (nk + 1)
     for c in range(4 * nk):

@@ -116,10 +116,75 @@ def soil_vertex(sf: Surface, n: int, r: int, c: int, lev: int) -> f64:
 
 
 @wp.func
-def soil_depth(sf: Surface, p: vec3d) -> f64:
+def tri(a: f64, b: f64, d: f64, e: f64, fu: f64, fv: f64) -> f64:
+    """Linear over a cell's triangle: a at (c, r), b at (c + 1, r), d at (c, r + 1), e at
+    (c + 1, r + 1) (engine surface::Tri)."""
+    if fu >= fv:
+        return a + fu * (b - a) + fv * (e - b)
+    return a + fv * (d - a) + fu * (e - d)
+
+
+@wp.func
+def beside_depth(sf: Surface, n: int, r: int, c: int, fu: f64, fv: f64, body: f64,
+                 z: f64) -> f64:  # fmt: skip
+    """Resisting depth [m] at height z of a point of the intruder marked body that presses on
+    some of cell (r, c)'s vertices and not on the others (engine surface::BesideDepth): above
+    the pressed vertices' surface, they take the levels of the cell's highest free vertex."""
+    h = wp.vector(dtype=f64, length=4)
+    lc = wp.vector(dtype=f64, length=4)
+    mem = wp.vector(dtype=f64, length=4)
+    pressed = wp.vector(dtype=int, length=4)
+    floor = f64(-1.0e300)
+    free = int(-1)
+    for q in range(4):
+        rr = r + q // 2
+        cc = c + q % 2
+        h[q] = soil_vertex(sf, n, rr, cc, 0)
+        lc[q] = soil_vertex(sf, n, rr, cc, 1)
+        mem[q] = soil_vertex(sf, n, rr, cc, 2)
+        if sf.soil[sf.w, SOIL_HEAD + 3 * n + rr * sf.ncol + cc] == body:
+            pressed[q] = 1
+            floor = wp.max(floor, h[q])
+        elif free < 0:
+            free = q
+        elif h[q] > h[free]:
+            free = q
+    if z >= floor + SOIL_CONTACT:  # beside the intruder: the free column up to its side
+        for q in range(4):
+            if pressed[q] != 0:
+                h[q] = h[free]
+                lc[q] = lc[free]
+                mem[q] = mem[free]
+    hz = tri(h[0], h[1], h[2], h[3], fu, fv)
+    if z >= hz + SOIL_CONTACT:
+        return hz - z
+    out = wp.max(hz - z, f64(0.0))
+    if z < tri(lc[0], lc[1], lc[2], lc[3], fu, fv) + SOIL_CONTACT:
+        out += tri(mem[0], mem[1], mem[2], mem[3], fu, fv)
+    return out
+
+
+@wp.func
+def soil_depth(sf: Surface, p: vec3d, body: f64) -> f64:
     """Resisting depth [m] of p under world sf.w's deforming grid (engine SoilDepth): (h + p) - z
     below the compacted level c, h - z above it (negative above the surface, as under a fixed
-    grid, so the force pass clips an element the surface crosses where it crosses)."""
+    grid, so the force pass clips an element the surface crosses where it crosses). body: k + 1
+    for a point of tagged body k, 0 for none: in a cell k presses on only in part, a point above
+    its floor is beside it (beside_depth)."""
+    if body > f64(0.0):
+        ncol = sf.ncol
+        n = ncol * sf.nrow
+        u = wp.min(wp.max((p[0] - sf.x0) / sf.dx, f64(0.0)), f64(ncol - 1))
+        v = wp.min(wp.max((p[1] - sf.y0) / sf.dy, f64(0.0)), f64(sf.nrow - 1))
+        c = wp.min(int(u), ncol - 2)
+        r = wp.min(int(v), sf.nrow - 2)
+        count = int(0)
+        for q in range(4):
+            i = (r + q // 2) * ncol + c + q % 2
+            if sf.soil[sf.w, SOIL_HEAD + 3 * n + i] == body:
+                count += 1
+        if count > 0 and count < 4:
+            return beside_depth(sf, n, r, c, u - f64(c), v - f64(r), body, p[2])
     at = soil_levels(sf, p[0], p[1])
     if p[2] >= at[0] + SOIL_CONTACT:
         return at[0] - p[2]
@@ -160,11 +225,12 @@ def height(sf: Surface, x: f64, y: f64) -> f64:
 
 
 @wp.func
-def depth(sf: Surface, p: vec3d) -> f64:
+def depth(sf: Surface, p: vec3d, body: f64) -> f64:
     """Resisting depth [m] of the world point p: vertically below the surface (<= 0: above it;
-    a deforming grid adds its memory below the compacted level)."""
+    a deforming grid adds its memory below the compacted level). body: k + 1 for a point of
+    tagged body k, 0 for none (soil_depth)."""
     if sf.kind == SOIL:
-        return soil_depth(sf, p)
+        return soil_depth(sf, p, body)
     return height(sf, p[0], p[1]) - p[2]
 
 
