@@ -23,6 +23,7 @@ using surface::kX0;
 using surface::kY0;
 
 constexpr f64 kInf = std::numeric_limits<f64>::infinity();
+constexpr f64 kNaN = std::numeric_limits<f64>::quiet_NaN();
 
 // Body-frame point (x, y, z) in the world: rot (3 x 3) body -> world, pos (3).
 inline void World(const f64* rot, const f64* pos, f64 x, f64 y, f64 z, f64 out[3]) {
@@ -328,21 +329,19 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
     }
     // Distance along the grid's steps between free vertices (a column an intruder presses on is
     // a wall the material goes around): forward and backward passes until nothing changes
-    // (one pair on open ground; a few more around walls).
-    auto pressed = [&](i64 r, i64 c) {
-      i64 v = r * ncol + c;
-      return floor[v] < grid[v] + soil[kSoilHead + v] + kSoilContact;
-    };
+    // (one pair on open ground; a few more around walls). A wall holds NaN: min(x, NaN + step)
+    // is x, and a NaN is never replaced (x < NaN is false), so the passes need not test for
+    // walls; every later use skips the walls by their capacity (cap < kSoilContact).
     for (i64 r = b0; r <= b1; r++) {
       for (i64 c = a0; c <= a1; c++) {
-        if (pressed(r, c)) putd(r, c, kInf);
+        i64 v = r * ncol + c;
+        if (floor[v] < grid[v] + soil[kSoilHead + v] + kSoilContact) putd(r, c, kNaN);
       }
     }
     for (bool changed = true; changed;) {
       changed = false;
       for (i64 r = b0; r <= b1; r++) {
         for (i64 c = a0; c <= a1; c++) {
-          if (pressed(r, c)) continue;
           f64 x0 = getd(r, c), x = x0;
           if (c > a0) x = std::min(x, getd(r, c - 1) + dx);
           if (r > b0) {
@@ -358,7 +357,6 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
       }
       for (i64 r = b1; r >= b0; r--) {
         for (i64 c = a1; c >= a0; c--) {
-          if (pressed(r, c)) continue;
           f64 x0 = getd(r, c), x = x0;
           if (c < a1) x = std::min(x, getd(r, c + 1) + dx);
           if (r < b1) {
