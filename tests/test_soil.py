@@ -193,7 +193,9 @@ def test_an_automatic_cell_puts_ten_across_the_narrowest_intruder():
     two = xml.replace(
         '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>',
         '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>'
-        '<body name="ball" pos="0.04 0 0.02"><geom name="ball" size="0.012" mass="0.1"/></body>',
+        '<body name="rod" pos="-0.04 0 0.05"><geom name="rod" size="0.002" mass="0.01"/></body>'
+        '<body name="ball" pos="0.04 0 0.02"><freejoint/><geom name="ball" size="0.012" '
+        'mass="0.1"/></body>',
     ).replace(
         '<element objtype="geom" objname="foot" prm="300"/>',
         '<element objtype="geom" objname="foot" prm="300"/>'

@@ -651,11 +651,15 @@ def _auto_cell(model: mujoco.MjModel, tagged, region: np.ndarray) -> float:
     over the region would pass soil.MAX_VERTICES."""
     if not tagged:
         raise SceneError("deform_cell = 'auto': there are no intruders to size the cell by")
-    widths = [2.0 * float(np.sort(model.geom_aabb[g, 3:])[1]) for g in tagged]
+    geoms = list(tagged)
+    widths = [2.0 * float(np.sort(model.geom_aabb[g, 3:])[1]) for g in geoms]
     cell = soil.auto_cell(widths)
     fitted = soil.fit_cell(region, cell)
     if fitted > cell:
-        narrow = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(np.argmin(widths))) or ""
+        narrowest = geoms[int(np.argmin(widths))]
+        narrow = (
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, narrowest) or f"geom {narrowest}"
+        )
         warnings.warn(
             f"deform_cell = 'auto': {soil.CELLS_ACROSS} cells across the narrowest intruder "
             f"('{narrow}', {min(widths) * 1e3:.3g} mm) would be {cell * 1e3:.3g} mm, and the grid "
