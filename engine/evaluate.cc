@@ -92,6 +92,7 @@ int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, i
     i64 k = t.tgeom_tbody[g];
     if (s.keep[k]) continue;
     i64 b = t.tbody_bodyid[k];
+    f64* pure = s.geom_pure + 6 * g;
     if (Culled(d, t, s, g)) {
       s.cull[g] = 1;
       if (s.geom_dirty[g]) {
@@ -99,13 +100,21 @@ int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, i
         for (i64 i = 0; i < 3 * t.tgeom_elemnum[g]; i++) f[i] = 0.0;
         s.geom_dirty[g] = 0;
       }
+      for (int c = 0; c < 6; c++) pure[c] = 0.0;
+      s.geom_pure_pass[g] = s.pass[0];
       continue;
     }
     s.geom_dirty[g] = 1;
     if (s.frz[k]) continue;
     const f64* cvel = d->cvel + 6 * b;
+    f64* w = s.wrench + 6 * b;
+    f64 before[6];
+    for (int c = 0; c < 6; c++) before[c] = w[c];
     act += GeomWrench(d, t, s, g, cvel, cvel + 3, d->subtree_com + 3 * t.tbody_rootid[k],
-                      d->xipos + 3 * b, s.wrench + 6 * b, s.elem_force);
+                      d->xipos + 3 * b, w, s.elem_force);
+    // The geom's share for the sensors (sensor.h): what it added to its body's sum.
+    for (int c = 0; c < 6; c++) pure[c] = w[c] - before[c];
+    s.geom_pure_pass[g] = s.pass[0];
     evaluated += t.tgeom_elemnum[g];
   }
   if (acting) *acting = act;

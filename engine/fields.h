@@ -124,7 +124,7 @@
   X(f64, soil_box, (3 * nk + 4) * 4, "work: vertex boxes of footprints, the relaxation's")  \
   X(i64, watch_told, nwatch, "1 once the geom's sinking was reported (watch.h)")            \
   X(f64, geom_pure, ng * 6, "work: pure wrench per geom about its body's CoM (sensor.h)")   \
-  X(i64, geom_pure_pass, ng, "work: the pass (stats[0]) geom_pure[g] was computed in")      \
+  X(i64, geom_pure_pass, ng, "work: the pass (pass[0]) geom_pure[g] was computed in")       \
   X(i64, pass, 1, "work: passes run on this mjData (the clock of elem_depth)")              \
   X(f64, elem_depth, nelem * 4, "work: depth of each centroid, then its corners [m]")       \
   X(i64, elem_depth_pass, nelem * 2, "work: the pass they hold (centroid, corners; -1 none)")

@@ -123,7 +123,6 @@ void Compute(const mjModel* m, mjData* d, int instance, int capability_bit) {
 void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, int g,
                  f64 out[kReadingSize]) {
   // 1. the pure model's wrench on each geom of the body, about the body's centre of mass
-  //    (once per pass and geom: a body's geoms share the sums)
   i64 k = t.tgeom_tbody[g];
   i64 b = t.tbody_bodyid[k];
   const f64* com = d->xipos + 3 * b;
@@ -131,9 +130,9 @@ void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, i
   int in_play = 0;
   for (i64 h = t.tbody_geomadr[k]; h < t.tbody_geomadr[k] + t.tbody_geomnum[k]; h++) {
     f64* w = s.geom_pure + 6 * h;
-    if (s.geom_pure_pass[h] != s.stats[0]) {
+    if (s.geom_pure_pass[h] != s.pass[0]) {  // the pass did not evaluate it (an RK4 stage)
       PureGeomWrench(d, t, s, static_cast<int>(h), com, w);
-      s.geom_pure_pass[h] = s.stats[0];
+      s.geom_pure_pass[h] = s.pass[0];
     }
     for (int c = 0; c < 6; c++) body[c] += w[c];
     total += Norm3(w);

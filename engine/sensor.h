@@ -29,7 +29,9 @@ constexpr char kSensorPluginName[] = "mjrft.sensor";
 constexpr int kReadingSize = 7;
 
 // Sets out (kReadingSize) to the reading of tagged geom g (an index into tgeom_*) from the
-// state of the last pass on d (caching each geom's pure wrench for the pass in s.geom_pure).
+// state of the last pass on d: each geom's pure wrench is what the pass's pure model added to
+// its body's sum (s.geom_pure, written by PureWrenches), or, for a geom the pass did not
+// evaluate (a body an RK4 stage keeps), the sum of its element forces, computed here once.
 void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, int g,
                  f64 out[kReadingSize]);
 
