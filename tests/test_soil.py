@@ -269,6 +269,25 @@ def test_a_withdrawn_rod_leaves_a_hole_that_slumps_to_the_angle_of_repose(travel
         assert f.soil(d).counters["updates"] == updates
 
 
+def test_ground_set_steeper_than_repose_reports_itself_unrelaxed_until_it_settles():
+    """A spike 2 cm high given with set_height is not relaxed (Soil.relaxed False) until the
+    updates have brought every slope to the angle of repose; the volume is conserved."""
+    m, f, d = load(FOOT.format(cell=CELL, **BOX))
+    soil = f.soil(d)
+    h = soil.height
+    h[5, 5] = 0.02
+    soil.set_height(h)
+    assert not f.soil(d).relaxed
+    for _ in range(200):
+        mujoco.mj_step(m, d)
+        if f.soil(d).relaxed:
+            break
+    assert f.soil(d).relaxed
+    assert f.soil(d).counters["unrelaxed"] >= 0
+    assert steepest_free_excess(f.soil(d)) <= max(SLOPE_RTOL, rules.SLOPE_SLACK / CELL)
+    assert f.soil(d).volume() == pytest.approx(0.02 * CELL**2, rel=1e-9)
+
+
 def test_a_hole_relaxes_in_a_state_restored_into_a_fresh_mjdata():
     """The rod pressed in, its state restored into a new MjData (whose work arrays never saw an
     update) and the rod taken out of the ground in one step: the update relaxes the hole from

@@ -626,7 +626,9 @@ def _print_summary(
         g = run.ground
         print(
             f"  deforming ground: {g['excavated_m3']:.4g} m^3 cut, {g['lost_m3']:.4g} m^3 lost "
-            f"at the region's edge ({g['lost_fraction']:.3g} of the cut volume)"
+            f"at the region's edge ({g['lost_fraction']:.3g} of the cut volume); "
+            f"{g['unrelaxed_updates']} of {g['updates']} updates ended before every slope "
+            f"reached repose{'' if g['relaxed'] else ', the last one too'}"
         )
         if g["lost_m3"] > 0:
             print(

@@ -297,17 +297,24 @@ def ground_balance(fld: GranularField, data: mujoco.MjData) -> dict[str, float] 
     volume that found no place on the grid to go, the engine's ``unplaced`` counter: cut at the
     edge of ``mjrft:region``, whose outer ring of vertices never changes, or under a footprint
     that covers the whole region; it is gone from the ground), ``lost_fraction`` (lost_m3 /
-    excavated_m3, 0 when nothing was cut) and ``edge_vertices`` (footprint vertices on that
-    outer ring, summed over the updates: where an intruder met ground that cannot deform)."""
+    excavated_m3, 0 when nothing was cut), ``edge_vertices`` (footprint vertices on that
+    outer ring, summed over the updates: where an intruder met ground that cannot deform), and
+    the relaxation's account: ``updates``, ``unrelaxed_updates`` (those whose relaxation spent
+    its work budget before every slope reached the angle of repose; the next update goes on)
+    and ``relaxed`` (whether the last update left every slope at repose)."""
     if not fld.deforms:
         return None
-    counters = fld.soil(data).counters
+    ground = fld.soil(data)
+    counters = ground.counters
     cut, lost = counters["excavated"], counters["unplaced"]
     return {
         "excavated_m3": cut,
         "lost_m3": lost,
         "lost_fraction": lost / cut if cut > 0 else 0.0,
         "edge_vertices": int(counters["edge"]),
+        "updates": int(counters["updates"]),
+        "unrelaxed_updates": int(counters["unrelaxed"]),
+        "relaxed": ground.relaxed,
     }
 
 

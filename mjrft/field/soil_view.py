@@ -34,6 +34,13 @@ class Soil:
         return {k: float(v) for k, v in zip(soil.SOIL_STATS, self._counters, strict=True)}
 
     @property
+    def relaxed(self) -> bool:
+        """True if the last update left no slope steeper than the angle of repose (its
+        relaxation ended within its work budget; the next update goes on where it stopped)."""
+        r0, r1, c0, c1 = self._block[surface.SOIL_PENDING : surface.SOIL_PENDING + 4]
+        return not (r1 > r0 and c1 > c0)
+
+    @property
     def tan_repose(self) -> float:
         """Tangent of the angle of repose: the steepest slope relaxation leaves."""
         return float(self._ground.prm[surface.TAN_REPOSE])
@@ -87,6 +94,8 @@ class Soil:
         self._dh[:] = h - self._ground.grid
         self._dc[:] = self._dh
         self._p[:] = 0.0
+        n = self._dh.size  # no intruder pressed on the new ground (the press marks)
+        self._block[surface.SOIL_HEAD + 3 * n : surface.SOIL_HEAD + 4 * n] = 0.0
         prm = self._ground.prm
         self._block[surface.SOIL_ZOFF] = max(0.0, float(h.max()) - prm[surface.ZMAX])
         # Relax everything at the next update: the new heights may be steeper than repose.
