@@ -180,21 +180,21 @@ def test_a_pass_looks_the_ground_up_again_where_the_body_moved():
 
 
 def test_an_automatic_cell_puts_ten_across_the_narrowest_intruder():
-    """deform_cell = "auto": rules.CELLS_ACROSS cells across the narrowest footprint (the middle
-    extent of each intruder's bounding box: 5 cm for the 5 x 5 x 1 cm plate, 2.4 cm for a
-    sphere of radius 1.2 cm beside it); over a region too large for that cell, the finest cell
-    whose grid fits rules.MAX_VERTICES, with a warning that names the intruder."""
+    """deform_cell = "auto": rules.CELLS_ACROSS cells across the narrowest intruder (the
+    smallest extent of each intruder's bounding box: 1 cm for the 5 x 5 x 1 cm plate, 0.8 cm
+    for a sphere of radius 4 mm beside it); over a region too large for that cell, the finest
+    cell whose grid fits rules.MAX_VERTICES, with a warning that names the intruder."""
     xml = FOOT.format(cell="auto", **BOX).replace(
         '<numeric name="mjrft:deform_cell" data="auto"/>',
         '<text name="mjrft:deform_cell" data="auto"/>',
     )
     _, f, d = load(xml)
-    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.05 / rules.CELLS_ACROSS)
+    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.01 / rules.CELLS_ACROSS)
     two = xml.replace(
         '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>',
         '<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body>'
         '<body name="rod" pos="-0.04 0 0.05"><geom name="rod" size="0.002" mass="0.01"/></body>'
-        '<body name="ball" pos="0.04 0 0.02"><freejoint/><geom name="ball" size="0.012" '
+        '<body name="ball" pos="0.04 0 0.02"><freejoint/><geom name="ball" size="0.004" '
         'mass="0.1"/></body>',
     ).replace(
         '<element objtype="geom" objname="foot" prm="300"/>',
@@ -202,7 +202,7 @@ def test_an_automatic_cell_puts_ten_across_the_narrowest_intruder():
         '<element objtype="geom" objname="ball" prm="300"/>',
     )
     _, f, d = load(two)
-    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.024 / rules.CELLS_ACROSS)
+    assert f.soil(d).x[1] - f.soil(d).x[0] == pytest.approx(0.008 / rules.CELLS_ACROSS)
     wide = two.replace("-0.06 -0.06 -0.1 0.06 0.06 0.05", "-5 -5 -0.1 5 5 0.05")
     with pytest.warns(SceneWarning, match="'ball'"):
         _, f, d = load(wide)

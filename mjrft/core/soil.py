@@ -68,9 +68,10 @@ SLOPE_TOLERANCE = 0.01
 SLOPE_SLACK = 1e-6
 #: Largest grid accepted (vertices): its soil block then takes 4 x 8 bytes per vertex per MjData.
 MAX_VERTICES = 2_000_000
-#: deform_cell = "auto" puts this many cells across the narrowest intruder's footprint (the
-#: middle extent of its bounding box): a 5 cm plate's rest depth is then within 7.1 % of the
-#: cell-free value, the Go2's feet depth within 1.3 % of a cell half as large
+#: deform_cell = "auto" puts this many cells across the narrowest intruder (the smallest extent
+#: of its bounding box, which resolves its thinnest side as it cuts): a 5 x 5 x 1 cm plate's
+#: rest depth is then within 0.8 % of the cell-free estimate, the Go2's feet depth within
+#: 1.3 % of a cell half as large
 #: (``python benchmarks/deform_convergence.py``; docs/terrain.md).
 CELLS_ACROSS = 10
 #: Work counters: updates, volume excavated [m^3], volume that found no rim [m^3], updates whose
@@ -102,8 +103,8 @@ def grid_shape(region: np.ndarray, cell: float) -> tuple[int, int]:
 
 
 def auto_cell(widths) -> float:
-    """The cell [m] that puts CELLS_ACROSS cells across the narrowest of the intruders'
-    footprint widths [m] (deform_cell = "auto")."""
+    """The cell [m] that puts CELLS_ACROSS cells across the narrowest of the intruders' widths
+    [m] (deform_cell = "auto")."""
     return float(min(widths)) / CELLS_ACROSS
 
 

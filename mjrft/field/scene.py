@@ -646,13 +646,13 @@ def _deforming(model, custom, initial: Surface, region, material, tagged, option
 
 
 def _auto_cell(model: mujoco.MjModel, tagged, region: np.ndarray) -> float:
-    """The cell [m] of deform_cell = "auto": soil.auto_cell of the intruders' footprint widths
-    (the middle extent of each geom's bounding box), coarsened with a SceneWarning if the grid
+    """The cell [m] of deform_cell = "auto": soil.auto_cell of the intruders' widths (the
+    smallest extent of each geom's bounding box), coarsened with a SceneWarning if the grid
     over the region would pass soil.MAX_VERTICES."""
     if not tagged:
         raise SceneError("deform_cell = 'auto': there are no intruders to size the cell by")
     geoms = list(tagged)
-    widths = [2.0 * float(np.sort(model.geom_aabb[g, 3:])[1]) for g in geoms]
+    widths = [2.0 * float(model.geom_aabb[g, 3:].min()) for g in geoms]
     cell = soil.auto_cell(widths)
     fitted = soil.fit_cell(region, cell)
     if fitted > cell:
