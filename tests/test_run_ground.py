@@ -39,6 +39,8 @@ def test_the_volume_lost_at_the_regions_edge_is_reported(tmp_path, capsys, x_max
     assert reported["updates"] == soil.counters["updates"] > 0
     assert reported["unrelaxed_updates"] == soil.counters["unrelaxed"]
     assert reported["relaxed"] == soil.relaxed
+    assert reported["cell_m"] == pytest.approx(0.0025)  # mjrft:deform_cell
+    assert reported["grid"] == list(soil.height.shape)
     assert reported["excavated_m3"] == soil.counters["excavated"] > 0
     # What the counter says is lost is what the grid misses (every move conserves the rest).
     assert soil.volume() == pytest.approx(-reported["lost_m3"], abs=1e-9 * reported["excavated_m3"])

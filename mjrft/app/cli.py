@@ -625,8 +625,10 @@ def _print_summary(
     if run.ground is not None:
         g = run.ground
         print(
-            f"  deforming ground: {g['excavated_m3']:.4g} m^3 cut, {g['lost_m3']:.4g} m^3 lost "
-            f"at the region's edge ({g['lost_fraction']:.3g} of the cut volume); "
+            f"  deforming ground ({g['cell_m'] * 1e3:.3g} mm cell, {g['grid'][0]} x "
+            f"{g['grid'][1]} vertices): {g['excavated_m3']:.4g} m^3 cut, "
+            f"{g['lost_m3']:.4g} m^3 lost at the region's edge ({g['lost_fraction']:.3g} of the "
+            "cut volume); "
             f"{g['unrelaxed_updates']} of {g['updates']} updates ended before every slope "
             f"reached repose{'' if g['relaxed'] else ', the last one too'}"
         )

@@ -301,7 +301,8 @@ def ground_balance(fld: GranularField, data: mujoco.MjData) -> dict[str, float] 
     outer ring, summed over the updates: where an intruder met ground that cannot deform), and
     the relaxation's account: ``updates``, ``unrelaxed_updates`` (those whose relaxation spent
     its work budget before every slope reached the angle of repose; the next update goes on)
-    and ``relaxed`` (whether the last update left every slope at repose)."""
+    and ``relaxed`` (whether the last update left every slope at repose); and the grid:
+    ``cell_m`` [m] and ``grid`` (rows, columns of vertices)."""
     if not fld.deforms:
         return None
     ground = fld.soil(data)
@@ -315,6 +316,8 @@ def ground_balance(fld: GranularField, data: mujoco.MjData) -> dict[str, float] 
         "updates": int(counters["updates"]),
         "unrelaxed_updates": int(counters["unrelaxed"]),
         "relaxed": ground.relaxed,
+        "cell_m": ground.cell,
+        "grid": [int(ground.y.size), int(ground.x.size)],
     }
 
 

@@ -58,6 +58,11 @@ class Soil:
         return prm[surface.Y0] + prm[surface.DY] * np.arange(int(prm[surface.NROW]))
 
     @property
+    def cell(self) -> float:
+        """Spacing [m] of the vertices (the same along x and y)."""
+        return float(self._ground.prm[surface.DX])
+
+    @property
     def cell_area(self) -> float:
         """Area [m^2] each vertex's column stands for."""
         return float(self._ground.prm[surface.DX] * self._ground.prm[surface.DY])
