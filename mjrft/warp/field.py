@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -165,23 +166,12 @@ def restore_kernel(
 
 @wp.kernel
 def fill_rows_kernel(
-    mask: wp.array(dtype=int), value: f64,
+    mask: wp.array(dtype=int), value: Any,
     # Data out
-    arr: wp.array2d(dtype=f64),
+    arr: wp.array2d(dtype=Any),
 ):  # fmt: skip
-    """arr[w, i] = value in the worlds w where mask[w] != 0."""
-    w, i = wp.tid()
-    if mask[w] != 0:
-        arr[w, i] = value
-
-
-@wp.kernel
-def fill_int_rows_kernel(
-    mask: wp.array(dtype=int), value: int,
-    # Data out
-    arr: wp.array2d(dtype=int),
-):  # fmt: skip
-    """arr[w, i] = value in the worlds w where mask[w] != 0."""
+    """arr[w, i] = value in the worlds w where mask[w] != 0 (float64 and int32 arrays: Warp
+    makes one overload per type at launch)."""
     w, i = wp.tid()
     if mask[w] != 0:
         arr[w, i] = value
@@ -726,10 +716,9 @@ class WarpField:
         if st.mech is not None:
             arrays += [(getattr(st.mech, name), 0) for name in _mech_sizes(1, 1, 1)]
         for arr, value in arrays:
-            kernel = fill_int_rows_kernel if arr.dtype == wp.int32 else fill_rows_kernel
-            cast = int if arr.dtype == wp.int32 else f64
+            cast = wp.int32 if arr.dtype == wp.int32 else f64
             wp.launch(
-                kernel, dim=arr.shape, inputs=[worlds, cast(value)], outputs=[arr],
+                fill_rows_kernel, dim=arr.shape, inputs=[worlds, cast(value)], outputs=[arr],
                 device=self.device,
             )  # fmt: skip
 

@@ -81,27 +81,36 @@ def with_soil(sf: Surface, soil: wp.array) -> Surface:
 
 
 @wp.func
+def cell_of(sf: Surface, x: f64, y: f64):
+    """The cell of (x, y) [m] in the grid: row r, column c and the position (fu, fv) inside it,
+    the grid's edge continuing beyond it (engine surface::CellOf)."""
+    u = wp.min(wp.max((x - sf.x0) / sf.dx, f64(0.0)), f64(sf.ncol - 1))
+    v = wp.min(wp.max((y - sf.y0) / sf.dy, f64(0.0)), f64(sf.nrow - 1))
+    c = wp.min(int(u), sf.ncol - 2)
+    r = wp.min(int(v), sf.nrow - 2)
+    return r, c, u - f64(c), v - f64(r)
+
+
+@wp.func
+def tri(a: f64, b: f64, d: f64, e: f64, fu: f64, fv: f64) -> f64:
+    """Linear over a cell's triangle: a at (c, r), b at (c + 1, r), d at (c, r + 1), e at
+    (c + 1, r + 1) (engine surface::Tri)."""
+    if fu >= fv:
+        return a + fu * (b - a) + fv * (e - b)
+    return a + fv * (d - a) + fu * (e - d)
+
+
+@wp.func
 def soil_levels(sf: Surface, x: f64, y: f64) -> vec3d:
     """(h, c, p) [m] of world sf.w's deforming grid at (x, y), linear over the cell's triangle
     (engine SoilLevels)."""
-    ncol = sf.ncol
-    n = ncol * sf.nrow
-    u = wp.min(wp.max((x - sf.x0) / sf.dx, f64(0.0)), f64(ncol - 1))
-    v = wp.min(wp.max((y - sf.y0) / sf.dy, f64(0.0)), f64(sf.nrow - 1))
-    c = wp.min(int(u), ncol - 2)
-    r = wp.min(int(v), sf.nrow - 2)
-    fu = u - f64(c)
-    fv = v - f64(r)
+    n = sf.ncol * sf.nrow
+    r, c, fu, fv = cell_of(sf, x, y)
     out = vec3d()
     for lev in range(3):
-        a = soil_vertex(sf, n, r, c, lev)
-        b = soil_vertex(sf, n, r, c + 1, lev)
-        d = soil_vertex(sf, n, r + 1, c, lev)
-        e = soil_vertex(sf, n, r + 1, c + 1, lev)
-        if fu >= fv:
-            out[lev] = a + fu * (b - a) + fv * (e - b)
-        else:
-            out[lev] = a + fv * (d - a) + fu * (e - d)
+        out[lev] = tri(soil_vertex(sf, n, r, c, lev), soil_vertex(sf, n, r, c + 1, lev),
+                       soil_vertex(sf, n, r + 1, c, lev), soil_vertex(sf, n, r + 1, c + 1, lev),
+                       fu, fv)  # fmt: skip
     return out
 
 
@@ -116,12 +125,15 @@ def soil_vertex(sf: Surface, n: int, r: int, c: int, lev: int) -> f64:
 
 
 @wp.func
-def tri(a: f64, b: f64, d: f64, e: f64, fu: f64, fv: f64) -> f64:
-    """Linear over a cell's triangle: a at (c, r), b at (c + 1, r), d at (c, r + 1), e at
-    (c + 1, r + 1) (engine surface::Tri)."""
-    if fu >= fv:
-        return a + fu * (b - a) + fv * (e - b)
-    return a + fv * (d - a) + fu * (e - d)
+def levels_depth(h: f64, lc: f64, mem: f64, z: f64) -> f64:
+    """Resisting depth [m] at height z under the levels (h, c, p) [m] of a deforming grid at a
+    point: (h + p) - z below c, h - z above it (engine SoilDepth)."""
+    if z >= h + SOIL_CONTACT:
+        return h - z
+    out = wp.max(h - z, f64(0.0))
+    if z < lc + SOIL_CONTACT:
+        out += mem
+    return out
 
 
 @wp.func
@@ -155,13 +167,9 @@ def beside_depth(sf: Surface, n: int, r: int, c: int, fu: f64, fv: f64, body: f6
                 h[q] = h[free]
                 lc[q] = lc[free]
                 mem[q] = mem[free]
-    hz = tri(h[0], h[1], h[2], h[3], fu, fv)
-    if z >= hz + SOIL_CONTACT:
-        return hz - z
-    out = wp.max(hz - z, f64(0.0))
-    if z < tri(lc[0], lc[1], lc[2], lc[3], fu, fv) + SOIL_CONTACT:
-        out += tri(mem[0], mem[1], mem[2], mem[3], fu, fv)
-    return out
+    return levels_depth(tri(h[0], h[1], h[2], h[3], fu, fv),
+                        tri(lc[0], lc[1], lc[2], lc[3], fu, fv),
+                        tri(mem[0], mem[1], mem[2], mem[3], fu, fv), z)  # fmt: skip
 
 
 @wp.func
@@ -172,44 +180,24 @@ def soil_depth(sf: Surface, p: vec3d, body: f64) -> f64:
     for a point of tagged body k, 0 for none: in a cell k presses on only in part, a point above
     its floor is beside it (beside_depth)."""
     if body > f64(0.0):
-        ncol = sf.ncol
-        n = ncol * sf.nrow
-        u = wp.min(wp.max((p[0] - sf.x0) / sf.dx, f64(0.0)), f64(ncol - 1))
-        v = wp.min(wp.max((p[1] - sf.y0) / sf.dy, f64(0.0)), f64(sf.nrow - 1))
-        c = wp.min(int(u), ncol - 2)
-        r = wp.min(int(v), sf.nrow - 2)
+        n = sf.ncol * sf.nrow
+        r, c, fu, fv = cell_of(sf, p[0], p[1])
         count = int(0)
         for q in range(4):
-            i = (r + q // 2) * ncol + c + q % 2
+            i = (r + q // 2) * sf.ncol + c + q % 2
             if sf.soil[sf.w, SOIL_HEAD + 3 * n + i] == body:
                 count += 1
         if count > 0 and count < 4:
-            return beside_depth(sf, n, r, c, u - f64(c), v - f64(r), body, p[2])
+            return beside_depth(sf, n, r, c, fu, fv, body, p[2])
     at = soil_levels(sf, p[0], p[1])
-    if p[2] >= at[0] + SOIL_CONTACT:
-        return at[0] - p[2]
-    out = wp.max(at[0] - p[2], f64(0.0))
-    if p[2] < at[1] + SOIL_CONTACT:
-        out += at[2]
-    return out
+    return levels_depth(at[0], at[1], at[2], p[2])
 
 
 @wp.func
 def grid_height(sf: Surface, x: f64, y: f64) -> f64:
     """Height [m] of the grid at (x, y) [m] (``mjrft.core.surface.grid_height``)."""
-    ncol = sf.ncol
-    nrow = sf.nrow
-    u = wp.min(wp.max((x - sf.x0) / sf.dx, f64(0.0)), f64(ncol - 1))
-    v = wp.min(wp.max((y - sf.y0) / sf.dy, f64(0.0)), f64(nrow - 1))
-    c = wp.min(int(u), ncol - 2)
-    r = wp.min(int(v), nrow - 2)
-    fu = u - f64(c)
-    fv = v - f64(r)
-    h00 = sf.grid[r, c]
-    h11 = sf.grid[r + 1, c + 1]
-    if fu >= fv:
-        return h00 + fu * (sf.grid[r, c + 1] - h00) + fv * (h11 - sf.grid[r, c + 1])
-    return h00 + fv * (sf.grid[r + 1, c] - h00) + fu * (h11 - sf.grid[r + 1, c])
+    r, c, fu, fv = cell_of(sf, x, y)
+    return tri(sf.grid[r, c], sf.grid[r, c + 1], sf.grid[r + 1, c], sf.grid[r + 1, c + 1], fu, fv)
 
 
 @wp.func
