@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "evaluate.h"
+#include "lowspeed.h"
 #include "soil.h"
 #include "surface.h"
 
@@ -74,15 +75,12 @@ f64 IntruderSpeed(const mjData* d, const Tables& t, const State& s) {
   for (int g = 0; g < t.ntgeom; g++) {
     if (Culled(d, t, s, g)) continue;
     i64 k = t.tgeom_tbody[g];
-    const f64* cv = d->cvel + 6 * t.tbody_bodyid[k];
-    const f64* x = d->geom_xpos + 3 * t.tgeom_geomid[g];
-    const f64* o = d->subtree_com + 3 * t.tbody_rootid[k];
-    f64 rx = x[0] - o[0], ry = x[1] - o[1], rz = x[2] - o[2];
-    f64 vx = cv[3] + cv[1] * rz - cv[2] * ry;
-    f64 vy = cv[4] + cv[2] * rx - cv[0] * rz;
-    f64 vz = cv[5] + cv[0] * ry - cv[1] * rx;
-    f64 spin = std::sqrt(cv[0] * cv[0] + cv[1] * cv[1] + cv[2] * cv[2]);
-    fastest = std::max(fastest, std::sqrt(vx * vx + vy * vy + vz * vz) + spin * t.tgeom_rbound[g]);
+    const f64* om = d->cvel + 6 * t.tbody_bodyid[k];
+    f64 v[3];
+    lowspeed::PointVelocity(d, t, static_cast<int>(k), d->geom_xpos + 3 * t.tgeom_geomid[g], v);
+    f64 spin = std::sqrt(om[0] * om[0] + om[1] * om[1] + om[2] * om[2]);
+    fastest = std::max(
+        fastest, std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + spin * t.tgeom_rbound[g]);
   }
   return fastest;
 }

@@ -141,16 +141,18 @@ void WorldInertia(const f64* x, const f64* inertia, f64* iw, f64* ii) {
   }
 }
 
-void ComVelocity(const mjData* d, const Tables& t, int k, f64* v) {
-  i64 b = t.tbody_bodyid[k];
-  const f64* cvel = d->cvel + 6 * b;
+void PointVelocity(const mjData* d, const Tables& t, int k, const f64* p, f64* v) {
+  const f64* cvel = d->cvel + 6 * t.tbody_bodyid[k];
   const f64* om = cvel;
   const f64* c0 = d->subtree_com + 3 * t.tbody_rootid[k];
-  const f64* xi = d->xipos + 3 * b;
-  f64 rx = xi[0] - c0[0], ry = xi[1] - c0[1], rz = xi[2] - c0[2];
+  f64 rx = p[0] - c0[0], ry = p[1] - c0[1], rz = p[2] - c0[2];
   v[0] = cvel[3] + om[1] * rz - om[2] * ry;
   v[1] = cvel[4] + om[2] * rx - om[0] * rz;
   v[2] = cvel[5] + om[0] * ry - om[1] * rx;
+}
+
+void ComVelocity(const mjData* d, const Tables& t, int k, f64* v) {
+  PointVelocity(d, t, k, d->xipos + 3 * t.tbody_bodyid[k], v);
 }
 
 void Gravity(const mjModel* m, int b, f64* g) {

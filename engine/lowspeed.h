@@ -141,8 +141,11 @@ void TransverseBasis(const f64* twist, f64 mass, const f64* iw, const f64* mm, f
 // inertial frame x (3x3, ximat) and the principal moments inertia (3) [kg m^2].
 void WorldInertia(const f64* x, const f64* inertia, f64* iw, f64* ii);
 
-// v (3): world velocity [m/s] of tagged body k's CoM (cvel's linear part is at the subtree CoM
-// of the body's root).
+// v (3): world velocity [m/s] of the world point p (3) [m] moving with tagged body k (cvel's
+// linear part is at the subtree CoM of the body's root).
+void PointVelocity(const mjData* d, const Tables& t, int k, const f64* p, f64* v);
+
+// v (3): world velocity [m/s] of tagged body k's CoM (PointVelocity at xipos).
 void ComVelocity(const mjData* d, const Tables& t, int k, f64* v);
 
 // g (3): gravity acceleration [m/s^2] on body b, world frame (flag and compensation read live).
