@@ -98,8 +98,10 @@ def travel_table(cells: list[float], travels: list[float]) -> None:
         for c in cells:
             base = fn(c, 0.0)
             row = [f"every step {base * scale:.4g} {unit}"]
-            row += [f"travel {t:g}: {fn(c, t) * scale:.4g} ({fn(c, t) / base - 1:+.1%})"
-                    for t in travels if t > 0]  # fmt: skip
+            for t in travels:
+                if t > 0:  # one run per setting (each is a simulation)
+                    value = fn(c, t)
+                    row.append(f"travel {t:g}: {value * scale:.4g} ({value / base - 1:+.1%})")
             print(f"{name}, cell {c * 1e3:g} mm: " + ", ".join(row), flush=True)
 
 
