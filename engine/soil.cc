@@ -102,21 +102,34 @@ inline f64 SettlePair(f64* soil, const Offsets& o, i64 i, f64 hi, f64 fi, i64 j,
 }
 
 // The relaxation's queue: a ring buffer over the nrow * ncol vertices, each at most once (the
-// mark), so it never fills.
+// mark), so it never fills. Indices wrap by comparison, not by division (a pop is the
+// relaxation's innermost step).
 struct Queue {
   i64* items;
   i64 cap;
-  i64 tail = 0;
+  i64 head = 0;  // the oldest waiting vertex's slot
+  i64 tail = 0;  // the next free slot
   i64 count = 0;
 
-  // Flat index of the i-th waiting vertex (0: the oldest).
-  i64 At(i64 q) const { return items[(((tail - count + q) % cap) + cap) % cap]; }
+  // Flat index of the q-th waiting vertex (0: the oldest).
+  i64 At(i64 q) const {
+    i64 at = head + q;
+    return items[at < cap ? at : at - cap];
+  }
+
+  // Removes and returns the oldest waiting vertex.
+  i64 Pop() {
+    i64 i = items[head];
+    head = head + 1 < cap ? head + 1 : 0;
+    count--;
+    return i;
+  }
 
   // Appends vertex i unless it waits already.
   void Push(i64* mark, i64 i) {
     if (mark[i] == kQueued) return;
     items[tail] = i;
-    tail = (tail + 1) % cap;
+    tail = tail + 1 < cap ? tail + 1 : 0;
     mark[i] = kQueued;
     count++;
   }
@@ -136,22 +149,24 @@ inline Vertex Free(const f64* grid, const f64* soil, i64 oh, const f64* floor, i
 }
 
 // Settles free vertex i (row r, column c, height hi, floor fi) with its neighbour at
-// (r + a, c + b) (limit lim); if material moved, queues both.
-inline void SettleInto(const f64* prm, const f64* grid, f64* soil, const Offsets& o,
-                       const f64* floor, i64* mark, f64 lim, Queue& queue, f64* top, i64 i, i64 r,
-                       i64 c, f64 hi, f64 fi, i64 a, i64 b) {
-  i64 ncol = static_cast<i64>(prm[kNcol]), nrow = static_cast<i64>(prm[kNrow]);
+// (r + a, c + b) (limit lim) on a grid of nrow x ncol vertices; if material moved, queues both.
+// Returns vertex i's height after it.
+inline f64 SettleInto(const f64* grid, f64* soil, const Offsets& o, const f64* floor, i64* mark,
+                      i64 nrow, i64 ncol, f64 lim, Queue& queue, f64* top, i64 i, i64 r, i64 c,
+                      f64 hi, f64 fi, i64 a, i64 b) {
   i64 rr = r + a, cc = c + b;
-  if (rr < 1 || rr > nrow - 2 || cc < 1 || cc > ncol - 2) return;
+  if (rr < 1 || rr > nrow - 2 || cc < 1 || cc > ncol - 2) return hi;
   Vertex vj = Free(grid, soil, o.oh, floor, rr, cc, ncol);
-  if (!vj.free) return;
+  if (!vj.free) return hi;
   i64 j = rr * ncol + cc;
   if (SettlePair(soil, o, i, hi, fi, j, vj.h, vj.f, lim) <= 0.0) {
-    return;  // in repose, or capped by an intruder: settled
+    return hi;  // in repose, or capped by an intruder: settled
   }
-  *top = std::max({*top, grid[i] + soil[o.oh + i], grid[j] + soil[o.oh + j]});
+  hi = grid[i] + soil[o.oh + i];
+  *top = std::max({*top, hi, grid[j] + soil[o.oh + j]});
   queue.Push(mark, j);
   queue.Push(mark, i);
+  return hi;
 }
 
 // The eight neighbours of a vertex: row step, column step, index of the limit (x, y, diagonal).
@@ -286,6 +301,70 @@ struct Seeds {
   i64 r0, r1, c0, c1, wcol, n;
 };
 
+// Rows (of a box) where a distance fell in a pass of the cone's distance transform; lo > hi:
+// none.
+struct Fell {
+  i64 lo, hi;
+};
+
+// One raster pass of the cone's distance transform over nr rows of nc distances [m] (doubles
+// kept bit for bit in dist, row-major): forward (rows downwards, each vertex from the row before
+// it and then from its left neighbour) or backward (rows upwards, from the row after it and its
+// right neighbour); x, y and diagonal steps dx, dy, dd [m]. It starts at row from and goes on
+// past row to only while the row before fell: the rows that the last pass the other way changed
+// (and the one after them) are the only ones whose neighbours changed since this direction last
+// ran. A vertex takes the least of its own distance and each neighbour's plus the step; min is
+// exact, so neither the order of the candidates nor skipping a row none of whose neighbours
+// changed alters the result: every schedule ends at the least sum over the paths from the seeds.
+Fell DistancePass(i64* dist, i64 nr, i64 nc, f64 dx, f64 dy, f64 dd, bool forward, i64 from,
+                  i64 to) {
+  auto load = [](const i64* p) {
+    f64 x;
+    std::memcpy(&x, p, 8);
+    return x;
+  };
+  auto store = [](i64* p, f64 x) { std::memcpy(p, &x, 8); };
+  Fell out{nr, -1};
+  const i64 step = forward ? 1 : -1;
+  bool before = false;  // whether the row before fell in this pass
+  for (i64 r = from; r >= 0 && r < nr; r += step) {
+    if ((forward ? r > to : r < to) && !before) break;
+    i64* row = dist + r * nc;
+    bool fell = false;
+    i64 p = r - step;  // the row before
+    if (p >= 0 && p < nr) {
+      const i64* prev = dist + p * nc;
+      for (i64 c = 0; c < nc; c++) {
+        f64 x0 = load(row + c);
+        f64 x = std::min(x0, load(prev + c) + dy);
+        if (c > 0) x = std::min(x, load(prev + c - 1) + dd);
+        if (c + 1 < nc) x = std::min(x, load(prev + c + 1) + dd);
+        fell |= x < x0;
+        store(row + c, x);
+      }
+    }
+    if (forward) {
+      for (i64 c = 1; c < nc; c++) {
+        f64 x0 = load(row + c), x = std::min(x0, load(row + c - 1) + dx);
+        fell |= x < x0;
+        store(row + c, x);
+      }
+    } else {
+      for (i64 c = nc - 2; c >= 0; c--) {
+        f64 x0 = load(row + c), x = std::min(x0, load(row + c + 1) + dx);
+        fell |= x < x0;
+        store(row + c, x);
+      }
+    }
+    if (fell) {
+      out.lo = std::min(out.lo, r);
+      out.hi = std::max(out.hi, r);
+    }
+    before = fell;
+  }
+  return out;
+}
+
 // Lays height target [m] (volume / cell area) of loose material on the surface as a cone at
 // the repose slope around the seeds: every free vertex v near them rises to
 // min(max(h_v, H - tan(repose) d_v), floor_v), d_v its distance [m] to the nearest seed along
@@ -328,48 +407,23 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
       }
     }
     // Distance along the grid's steps between free vertices (a column an intruder presses on is
-    // a wall the material goes around): forward and backward passes until nothing changes
-    // (one pair on open ground; a few more around walls). A wall holds NaN: min(x, NaN + step)
-    // is x, and a NaN is never replaced (x < NaN is false), so the passes need not test for
-    // walls; every later use skips the walls by their capacity (cap < kSoilContact).
+    // a wall the material goes around): a forward and a backward pass over the box, then passes
+    // each way over the rows the last one changed until nothing changes (around walls). A wall
+    // holds NaN: min(x, NaN + step) is x, and a NaN is never replaced (x < NaN is false), so the
+    // passes need not test for walls; every later use skips the walls by their capacity (cap <
+    // kSoilContact).
     for (i64 r = b0; r <= b1; r++) {
       for (i64 c = a0; c <= a1; c++) {
         i64 v = r * ncol + c;
         if (floor[v] < grid[v] + soil[kSoilHead + v] + kSoilContact) putd(r, c, kNaN);
       }
     }
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (i64 r = b0; r <= b1; r++) {
-        for (i64 c = a0; c <= a1; c++) {
-          f64 x0 = getd(r, c), x = x0;
-          if (c > a0) x = std::min(x, getd(r, c - 1) + dx);
-          if (r > b0) {
-            x = std::min(x, getd(r - 1, c) + dy);
-            if (c > a0) x = std::min(x, getd(r - 1, c - 1) + dd);
-            if (c < a1) x = std::min(x, getd(r - 1, c + 1) + dd);
-          }
-          if (x < x0) {
-            putd(r, c, x);
-            changed = true;
-          }
-        }
-      }
-      for (i64 r = b1; r >= b0; r--) {
-        for (i64 c = a1; c >= a0; c--) {
-          f64 x0 = getd(r, c), x = x0;
-          if (c < a1) x = std::min(x, getd(r, c + 1) + dx);
-          if (r < b1) {
-            x = std::min(x, getd(r + 1, c) + dy);
-            if (c < a1) x = std::min(x, getd(r + 1, c + 1) + dd);
-            if (c > a0) x = std::min(x, getd(r + 1, c - 1) + dd);
-          }
-          if (x < x0) {
-            putd(r, c, x);
-            changed = true;
-          }
-        }
-      }
+    i64 brow = b1 - b0 + 1;
+    DistancePass(dist, brow, bcol, dx, dy, dd, true, 0, brow - 1);
+    Fell fell = DistancePass(dist, brow, bcol, dx, dy, dd, false, brow - 1, 0);
+    for (bool forward = true; fell.lo <= fell.hi; forward = !forward) {
+      fell = forward ? DistancePass(dist, brow, bcol, dx, dy, dd, true, fell.lo, fell.hi + 1)
+                     : DistancePass(dist, brow, bcol, dx, dy, dd, false, fell.hi, fell.lo - 1);
     }
     // Each free vertex holds clamp(H - a, 0, cap), a = h + t d, cap = floor - h: the volume is
     // piecewise linear in H, rising by one at each a and falling by one at each a + cap. A
@@ -601,9 +655,8 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
         i64 i = r * ncol + c;
         f64 hi = vi.h;
         for (const auto& n : kSweep) {
-          SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0],
-                     n[1]);
-          hi = grid[i] + soil[o.oh + i];
+          hi = SettleInto(grid, soil, o, floor, mark, nrow, ncol, lim[n[2]], q, top, i, r, c, hi,
+                          vi.f, n[0], n[1]);
         }
       }
     }
@@ -612,16 +665,15 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
   i64 visits = 4 * area;
   const i64 budget = kMaxSweeps * visits;
   while (q.count > 0 && visits < budget) {
-    i64 i = q.At(0);
-    q.count--;
+    i64 i = q.Pop();
     i64 r = i / ncol, c = i % ncol;
     mark[i] = -1;
     Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
     if (!vi.free) continue;
     f64 hi = vi.h;
     for (const auto& n : kNeighbours) {
-      SettleInto(prm, grid, soil, o, floor, mark, lim[n[2]], q, top, i, r, c, hi, vi.f, n[0], n[1]);
-      hi = grid[i] + soil[o.oh + i];
+      hi = SettleInto(grid, soil, o, floor, mark, nrow, ncol, lim[n[2]], q, top, i, r, c, hi, vi.f,
+                      n[0], n[1]);
     }
     visits += 8;
   }
