@@ -36,13 +36,14 @@ import mujoco
 import numpy as np
 
 OUT = Path(__file__).resolve().parent / "results" / "deform_cost.csv"
-#: Default cells [m] per scene: the hexapod's documented 5 and 2 mm, the Go2's 5 and 2.5 mm,
-#: the wheel's 5 mm (benchmarks/wheel_slip.py).
+#: Default cells [m] per scene: 5 mm and the cell deform_cell="auto" picks for its intruders
+#: (mjrft.core.soil.auto_cell: the hexapod's feet 1.5 mm, the Go2's calves 2.2 mm, the wheel's
+#: width 3 mm).
 CELLS = {
-    "hexapod": (0.005, 0.002),
-    "go2": (0.005, 0.0025),
-    "go2_stand": (0.005, 0.0025),
-    "wheel": (0.005,),
+    "hexapod": (0.005, 0.0015),
+    "go2": (0.005, 0.0022),
+    "go2_stand": (0.005, 0.0022),
+    "wheel": (0.005, 0.003),
 }
 FROZEN = 10**8  # deform_every that never updates again after the first update
 #: The Go2's medium [m] (xmin ymin zmin xmax ymax zmax): its open-loop trot covers about 1 m
