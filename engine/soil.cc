@@ -295,6 +295,36 @@ inline f64 Unkey(i64 k) {
   return x;
 }
 
+// Sorts keys[0..n) in increasing (signed) order; tmp (n) is work space, or nullptr. A least
+// significant digit radix sort, a byte a pass, skipping the bytes all keys share (the
+// breakpoints of a cone share their sign and most of their exponent): the cone's breakpoints
+// number ~1,000, where it takes a third of std::sort's time. The order is the same either way.
+void SortKeys(i64* keys, i64 n, i64* tmp) {
+  using u64 = std::uint64_t;  // i64's unsigned twin: the same storage may be read as either
+  if (tmp == nullptr || n < 64) {
+    std::sort(keys, keys + n);
+    return;
+  }
+  constexpr u64 kSign = u64{1} << 63;  // flipped: signed order as unsigned order
+  u64* src = reinterpret_cast<u64*>(keys);
+  u64* dst = reinterpret_cast<u64*>(tmp);
+  i64 count[8][257] = {};  // every byte's counts, in one pass over the keys
+  for (i64 i = 0; i < n; i++) {
+    u64 k = src[i] ^ kSign;
+    for (int byte = 0; byte < 8; byte++) count[byte][((k >> (8 * byte)) & 255) + 1]++;
+  }
+  for (int byte = 0; byte < 8; byte++) {
+    i64* at = count[byte];
+    bool shared = false;
+    for (int b = 1; b <= 256 && !shared; b++) shared = at[b] == n;
+    if (shared) continue;
+    for (int b = 0; b < 256; b++) at[b + 1] += at[b];
+    for (i64 i = 0; i < n; i++) dst[at[((src[i] ^ kSign) >> (8 * byte)) & 255]++] = src[i];
+    std::swap(src, dst);
+  }
+  if (src != reinterpret_cast<u64*>(keys)) std::memcpy(keys, src, sizeof(i64) * n);
+}
+
 // The rim of a deposit: vertex box (r0, r1, c0, c1) and the seed offsets there [m] (rows of
 // wcol doubles kept bit for bit in work[0..n); +inf where no rim vertex).
 struct Seeds {
@@ -479,8 +509,9 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
           if (a + cap < hb) ends[p++] = Key(a + cap);
         }
       }
-      std::sort(starts, starts + m);
-      std::sort(ends, ends + p);
+      i64* spare = sd.n + 4 * nb <= nwork ? ends + nb : nullptr;
+      SortKeys(starts, m, spare);
+      SortKeys(ends, p, spare);
       f64 held = 0.0, x = Unkey(starts[0]);
       i64 slope = 0, i = 0, j = 0;
       top = hb;

@@ -62,6 +62,12 @@ with warnings.catch_warnings():
         data.ctrl[:] = go2_sand.trot_ctrl(data.time)
         mujoco.mj_step(go2, data)
     assert np.all(np.isfinite(data.sensordata)) and data.sensordata.any()
+# the walking hexapod on a 2 mm deforming grid (cones of 1,000s of breakpoints)
+from mjrft.envs import hexapod_sand
+env = hexapod_sand.make(seed=0, deform_cell=0.002)
+env.reset()
+for k in range(15):
+    env.step(np.full(env.action_spec().shape, np.sin(0.5 * k)))
 from mjrft.core import engine
 print("sanitized scenes ok with", engine.library_path())
 """
