@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "kernel.h"
+#include "mechanism.h"
 #include "surface.h"
 
 namespace mjrft {
@@ -79,20 +80,41 @@ bool InPlay(const Tables& t, const State& s, int k) {
   return false;
 }
 
-int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, int* acting) {
+int BodyPure(const mjData* d, const Tables& t, State& s, int k, int* acting) {
+  i64 b = t.tbody_bodyid[k];
+  const f64* cvel = d->cvel + 6 * b;
+  f64* w = s.wrench + 6 * b;
+  int evaluated = 0, act = 0;
+  for (i64 g = t.tbody_geomadr[k]; g < t.tbody_geomadr[k] + t.tbody_geomnum[k]; g++) {
+    if (s.cull[g]) continue;
+    f64* pure = s.geom_pure + 6 * g;
+    f64 before[6];
+    for (int c = 0; c < 6; c++) before[c] = w[c];
+    act += GeomWrench(d, t, s, static_cast<int>(g), cvel, cvel + 3,
+                      d->subtree_com + 3 * t.tbody_rootid[k], d->xipos + 3 * b, w, s.elem_force);
+    // The geom's share for the sensors (sensor.h): what it added to its body's sum.
+    for (int c = 0; c < 6; c++) pure[c] = w[c] - before[c];
+    s.geom_pure_pass[g] = s.pass[0];
+    evaluated += static_cast<int>(t.tgeom_elemnum[g]);
+  }
+  s.lazy[k] = 0;
+  if (acting) *acting += act;
+  return evaluated;
+}
+
+int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, int* acting,
+                 bool defer_held) {
   (void)m;
   for (int k = 0; k < t.ntbody; k++) {
+    s.lazy[k] = 0;
     if (!s.keep[k]) {
       f64* w = s.wrench + 6 * t.tbody_bodyid[k];
       for (int c = 0; c < 6; c++) w[c] = 0.0;
     }
   }
-  int evaluated = 0, act = 0;
   for (int g = 0; g < t.ntgeom; g++) {
     i64 k = t.tgeom_tbody[g];
     if (s.keep[k]) continue;
-    i64 b = t.tbody_bodyid[k];
-    f64* pure = s.geom_pure + 6 * g;
     if (Culled(d, t, s, g)) {
       s.cull[g] = 1;
       if (s.geom_dirty[g]) {
@@ -100,24 +122,23 @@ int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, i
         for (i64 i = 0; i < 3 * t.tgeom_elemnum[g]; i++) f[i] = 0.0;
         s.geom_dirty[g] = 0;
       }
+      f64* pure = s.geom_pure + 6 * g;
       for (int c = 0; c < 6; c++) pure[c] = 0.0;
       s.geom_pure_pass[g] = s.pass[0];
       continue;
     }
     s.geom_dirty[g] = 1;
-    if (s.frz[k]) continue;
-    const f64* cvel = d->cvel + 6 * b;
-    f64* w = s.wrench + 6 * b;
-    f64 before[6];
-    for (int c = 0; c < 6; c++) before[c] = w[c];
-    act += GeomWrench(d, t, s, g, cvel, cvel + 3, d->subtree_com + 3 * t.tbody_rootid[k],
-                      d->xipos + 3 * b, w, s.elem_force);
-    // The geom's share for the sensors (sensor.h): what it added to its body's sum.
-    for (int c = 0; c < 6; c++) pure[c] = w[c] - before[c];
-    s.geom_pure_pass[g] = s.pass[0];
-    evaluated += t.tgeom_elemnum[g];
   }
-  if (acting) *acting = act;
+  int evaluated = 0;
+  if (acting) *acting = 0;
+  for (int k = 0; k < t.ntbody; k++) {
+    if (s.keep[k] || s.frz[k]) continue;
+    if (defer_held && t.tbody_mech[k] && mechanism::HeldBefore(d, s, k)) {
+      s.lazy[k] = 1;
+      continue;
+    }
+    evaluated += BodyPure(d, t, s, k, acting);
+  }
   return evaluated;
 }
 

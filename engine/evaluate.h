@@ -29,10 +29,19 @@ int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, in
 // True if a geom of tagged body k may touch the medium this pass.
 bool InPlay(const Tables& t, const State& s, int k);
 
+// The pure model on tagged body k's geoms in play: adds it to the body's s.wrench row, and
+// writes each geom's share (s.geom_pure) and its element forces (s.elem_force); clears
+// s.lazy[k]. Returns #evaluated; acting (if not null) grows by #acting.
+int BodyPure(const mjData* d, const Tables& t, State& s, int k, int* acting);
+
 // The pure model on every tagged body that neither keeps nor freezes its wrench this pass:
 // culls geoms (s.cull), zeroes element forces of geoms that left the medium, writes s.wrench
-// rows and s.elem_force. Returns #evaluated; acting gets #acting.
-int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, int* acting);
+// rows and s.elem_force. With defer_held, a mechanism body held at the last pass
+// (mechanism::HeldBefore) is left at zero and marked s.lazy: the mechanism treatment holds it
+// again and evaluates it only where its pure model is needed. Returns #evaluated; acting gets
+// #acting.
+int PureWrenches(const mjModel* m, const mjData* d, const Tables& t, State& s, int* acting,
+                 bool defer_held);
 
 }  // namespace mjrft
 

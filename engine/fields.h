@@ -108,6 +108,7 @@
   X(i64, keep, nk, "1: keeps its RK4 step's first-stage wrench")                            \
   X(i64, frz, nk, "1: feels the model with stage 1's twist")                                \
   X(i64, slow, nk, "1: later RK4 stages must not evaluate the pure model")                  \
+  X(i64, lazy, nk, "1: its pure model deferred this pass (mechanism::HeldBefore)")          \
   X(f64, frozen, nk * 12, "stage 1's twist and implicit correction")                        \
   X(f64, mech_M, nv* nv, "cache: M of the configuration the factors belong to")             \
   X(f64, mech_cfg, 1 + nk + 6 * nv + 6 * nk, "cache: that configuration (-1: none)")        \

@@ -89,7 +89,8 @@ i64 Forward(const mjModel* m, mjData* d, const Tables& t, State& s, int mode) {
 
   // 4. the pure model on every body in play (frozen bodies at stage 1's twist)
   int acting = 0;
-  int evaluated = PureWrenches(m, d, t, s, &acting);
+  // (mechanism bodies held at the last pass are evaluated only if the treatment needs them)
+  int evaluated = PureWrenches(m, d, t, s, &acting, t.mech && mode == kInstalled && !held);
   if (held) {
     int na = 0;
     evaluated += FrozenWrenches(m, d, t, s, &na);

@@ -31,6 +31,15 @@ f64 Reference(const Tables& t, const State& s, i64 k, int r) {
   return s.wrench[6 * t.tbody_bodyid[k] + r];
 }
 
+// Evaluates tagged body k's pure model if this pass deferred it (s.lazy; PureWrenches), counted
+// in the pass's work counters.
+void EnsurePure(const mjData* d, const Tables& t, State& s, int k) {
+  if (!s.lazy[k]) return;
+  int acting = 0;
+  s.stats[1] += BodyPure(d, t, s, k, &acting);
+  s.stats[2] += acting;
+}
+
 // The configuration key of SameConfiguration, entry q: the number of bodies in the medium,
 // their rows (-1 padded), cdof, then per row its CoM and its root's subtree CoM (0 padded).
 f64 ConfigurationKey(const mjModel* m, const mjData* d, const Tables& t, const i64* rows, int n,
@@ -131,6 +140,11 @@ bool PredictorValid(const mjModel* m, const mjData* d, State& s, bool same_time)
   s.mech_time[1] = 1.0;
   s.mech_time[2] = ok ? 1.0 : 0.0;
   return ok;
+}
+
+bool HeldBefore(const mjData* d, const State& s, int k) {
+  bool same_time = s.mech_time[1] == 1.0 && d->time == s.mech_time[0];
+  return (same_time ? s.mech_in_held[k] : s.mech_held[k]) != 0;
 }
 
 bool Submerged(const mjData* d, const Tables& t, const State& s, int k) {
@@ -290,7 +304,8 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
   f64* g = s.mech_vec + VecLen(m, t);  // M^-1 sum J^T W: the medium's generalized acceleration
   for (int j = 0; j < nv; j++) g[j] = 0.0;
   for (int a = 0; a < n; a++) {
-    const f64* w = s.wrench + 6 * t.tbody_bodyid[rows[a]];
+    i64 k = rows[a];
+    const f64* w = s.mech_in_held[k] ? s.mech_in_prev + 6 * k : s.wrench + 6 * t.tbody_bodyid[k];
     for (int r = 0; r < 6; r++) {
       for (int j = 0; j < nv; j++) g[j] += s.mech_J[nv * (6 * a + r) + j] * w[r];
     }
@@ -299,6 +314,10 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
   f64 xi[6], dxi[6], pred[6], iw[9], ii[9];
   for (int a = 0; a < n; a++) {
     i64 k = rows[a];
+    if (s.mech_in_held[k]) {
+      code[k] = kStick;
+      continue;
+    }
     i64 b = t.tbody_bodyid[k];
     lowspeed::WorldInertia(d->ximat + 9 * b, m->body_inertia + 3 * b, iw, ii);
     f64 mass = m->body_mass[b];
@@ -423,6 +442,7 @@ int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
     f64 power = 0.0;
     for (int r = 0; r < 3; r++) power += slip[r] * v[r] + slip[3 + r] * d->cvel[6 * b + r];
     if (power > 0.0) {  // R would push along the present motion: the pure model instead
+      EnsurePure(d, t, s, static_cast<int>(k));
       for (int r = 0; r < 6; r++) slip[r] = s.wrench[6 * b + r];
     }
   }
@@ -494,12 +514,19 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
   int n = Gather(d, t, s, rows);
   if (n == 0 || nv == 0 || !(m->opt.timestep > 0.0) || !Setup(m, d, t, s, rows, n)) {
     for (int i = 0; i < nv; i++) s.mech_tau[i] = 0.0;
-    for (int k = 0; k < nk; k++) s.mech_held[k] = 0;
+    for (int k = 0; k < nk; k++) {
+      s.mech_held[k] = 0;
+      EnsurePure(d, t, s, k);
+    }
     return;
   }
-  // 2. Which bodies keep the pure model.
+  // 2. Which bodies keep the pure model (all of them where the loads cannot be predicted).
   for (int a = 0; a < n; a++) code[rows[a]] = kPure;
-  if (valid) Classify(m, d, t, s, rows, n, code);
+  if (valid) {
+    Classify(m, d, t, s, rows, n, code);
+  } else {
+    for (int a = 0; a < n; a++) EnsurePure(d, t, s, static_cast<int>(rows[a]));
+  }
   bool any = false;
   for (int a = 0; a < n; a++) any = any || code[rows[a]] == kStick;
   if (any) HoldSystem(m, t, s, n);
@@ -514,6 +541,7 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
     if (!SolveHolds(m, t, s, rows, n, code, out)) {
       for (int a = 0; a < n; a++) {  // not solvable: the pure model
         code[rows[a]] = kPure;
+        EnsurePure(d, t, s, static_cast<int>(rows[a]));
         const f64* w = s.wrench + 6 * t.tbody_bodyid[rows[a]];
         for (int r = 0; r < 6; r++) out[6 * a + r] = w[r];
       }
@@ -524,6 +552,9 @@ void TreatMechanisms(const mjModel* m, const mjData* d, const Tables& t, State& 
     code[rows[a]] = kSlip;
     for (int r = 0; r < 6; r++) out[6 * a + r] = slip[r];
   }
+  // The bodies in the medium get out; those out of it feel their pure model.
+  for (int a = 0; a < n; a++) s.lazy[rows[a]] = 0;
+  for (int k = 0; k < nk; k++) EnsurePure(d, t, s, k);
   // What the field applies, in tests/field_reference.py's order of additions.
   for (int i = 0; i < nv; i++) s.mech_tau[i] = 0.0;
   for (int a = 0; a < n; a++) {

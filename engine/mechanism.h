@@ -29,9 +29,12 @@
 // 2. A body keeps the pure model while its twist keeps its sense and changes by less than its
 //    own size over `reach` steps under every force: with the step's predicted change
 //    dxi = J_i (u - qvel) + dt J_i M^-1 sum_j J_j^T W_j (the pure model's wrenches W_j on every
-//    body in the medium), <xi + reach dxi, xi> > 0 and reach |dxi| < |xi| in the body's own
-//    kinetic-energy metric. A steadily driven rig, whose drive balances the medium, is never
-//    held.
+//    body in the medium; for a body held at the last pass, the wrench it was held with),
+//    <xi + reach dxi, xi> > 0 and reach |dxi| < |xi| in the body's own kinetic-energy metric. A
+//    steadily driven rig, whose drive balances the medium, is never held. A body held at the
+//    last pass ended that step at rest, where its pure model's direction is round-off: it is held
+//    again, and its pure model is evaluated only if needed (it slips on it, or the loads cannot be
+//    predicted), so a standing robot's held legs cost no evaluation of their triangles.
 // 3. The other bodies in the medium are held jointly: wrenches W_S with J_S (u + dt M^-1 (J_S^T
 //    W_S + J_P^T W_P)) = 0 (their twists end the step at zero), W_S = W_ref + the least-norm
 //    correction (A = J_S M^-1 J_S^T is singular wherever the mechanism cannot move a body in
@@ -108,6 +111,10 @@ void BodyJacobian(const mjModel* m, const mjData* d, const Tables& t, int k, int
 // first one's answer. Records this pass's time (s.mech_time).
 bool PredictorValid(const mjModel* m, const mjData* d, State& s, bool same_time);
 
+// True if tagged body k was held at the last pass (a repeated pass at one time: at the pass
+// that read the loads), so that this pass holds it again (Classify).
+bool HeldBefore(const mjData* d, const State& s, int k);
+
 // True if an element of tagged body k's geoms in play is below the free surface (the pure
 // wrench cannot tell: at rest it is zero).
 bool Submerged(const mjData* d, const Tables& t, const State& s, int k);
@@ -156,7 +163,12 @@ f64 RowDot(const f64* jac, int r, const f64* x, int nv);
 // decision array in TreatMechanisms): lowspeed's kPure, kStick (held) or kSlip.
 
 // code[rows[a]] = kStick for the bodies step 2 does not leave to the pure model (slow, or
-// reversing within `reach` steps); the others are left as they are. Uses s.mech_vec row 1.
+// reversing within `reach` steps), and for the bodies held at the last pass: a body the last
+// pass held ended that step at rest, where the pure model's direction is round-off, so it is
+// held again until the medium cannot supply its hold (WorstHold), and the prediction of the
+// others counts it with the wrench it was held with, not the pure model's (which the pass then
+// need not evaluate: PureWrenches' defer_held). The others are left as they are. Uses
+// s.mech_vec row 1.
 void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
               i64* code);
 

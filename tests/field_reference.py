@@ -554,9 +554,17 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
     n = len(rows)
     out = np.array([w[b] for b in bodies])
     held = np.zeros(n, dtype=bool)
+    ref = np.array(
+        [prev[k] if k in held_before else w[b] for k, b in zip(rows, bodies, strict=True)]
+    )
     if valid:
-        g = np.linalg.solve(M, J.T @ out.ravel())
+        # A body held at the last pass is held again, and counts in the others' prediction
+        # with the wrench it was held with (its pure model's direction is round-off at rest).
+        g = np.linalg.solve(M, J.T @ ref.ravel())
         for a, b in enumerate(bodies):
+            if rows[a] in held_before:
+                held[a] = True
+                continue
             ja = J[6 * a : 6 * a + 6]
             xi = ja @ data.qvel
             dxi = ja @ u - xi + dt * (ja @ g)
@@ -567,9 +575,6 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
                 xi, xi, mass, iw
             )
             held[a] = not (keeps and fast)
-    ref = np.array(
-        [prev[k] if k in held_before else w[b] for k, b in zip(rows, bodies, strict=True)]
-    )
     slipping = np.zeros(n, dtype=bool)
     for _ in range(n + 1):
         s_rows = [6 * a + r for a in range(n) if held[a] for r in range(6)]

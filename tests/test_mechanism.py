@@ -64,6 +64,30 @@ def test_a_standing_hexapod_stays_put(integrator):
     assert fz[-1] == pytest.approx(weight, rel=1e-3)  # the medium carries the robot
 
 
+def test_a_leg_held_at_the_last_step_is_held_again_without_evaluating_it():
+    """A body the last step held ended it at rest, where the pure model's direction is
+    round-off: it is held again, and its triangles are evaluated only if the treatment needs
+    them (it slips on its pure model, or the loads cannot be predicted). The standing hexapod's
+    held legs cost no evaluation; driven out of their holds, they are evaluated again."""
+    model, data, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+    before = fld.stats_of(data)["evaluated"]
+    for _ in range(100):
+        mujoco.mj_step(model, data)
+    held = fld.decision_of(data) == lowspeed.STICK
+    assert held.sum() >= 4  # the legs in the medium
+    triangles = np.array([len(be.areas) for be in fld.bodies])
+    evaluated = fld.stats_of(data)["evaluated"] - before
+    assert evaluated <= 100 * triangles[~held].sum()
+    data.act[:] += 0.2  # every hip's setpoint 0.2 rad away: the servos pull the legs out
+    before = fld.stats_of(data)["evaluated"]
+    for _ in range(20):
+        mujoco.mj_step(model, data)
+    assert not (fld.decision_of(data) == lowspeed.STICK).any()
+    assert fld.stats_of(data)["evaluated"] - before > 20 * triangles[held].sum() / 2
+
+
 def test_without_the_mechanism_treatment_it_creeps():
     """The same stand with low_speed="free" (the pure model for the legs): the failure the
     treatment removes, so the test above can fail."""

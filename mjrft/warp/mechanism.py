@@ -342,19 +342,23 @@ def setup(mc: Mech, kin: Kin, ld: Loads, tbody_bodyid: wp.array(dtype=int),
 def classify(mc: Mech, kin: Kin, ld: Loads, tbody_bodyid: wp.array(dtype=int),
              force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
              code: wp.array2d(dtype=int), w: int, n: int, dt: f64):  # fmt: skip
-    """code = STICK for the bodies in the medium that do not keep the pure model (engine
-    Classify)."""
+    """code = STICK for the bodies in the medium that do not keep the pure model, and for those
+    held at the last pass, which the prediction counts with their hold (engine Classify)."""
     nv = mc.nv
     for j in range(nv):
         mc.g[w, j] = _Z
     for a in range(n):
-        wr = wrench_of(force, torque, w, mc.rows[w, a])
+        k = mc.rows[w, a]
         for r in range(6):
+            wr = reference(mc, force, torque, w, k, r)
             for j in range(nv):
-                mc.g[w, j] = mc.g[w, j] + mc.jac[w, nv * (6 * a + r) + j] * wr[r]
+                mc.g[w, j] = mc.g[w, j] + mc.jac[w, nv * (6 * a + r) + j] * wr
     cho_solve(mc.lo, w, nv, nv, mc.g, 0)
     for a in range(n):
         k = mc.rows[w, a]
+        if mc.in_held[w, k] != 0:
+            code[w, k] = ls.STICK
+            continue
         b = tbody_bodyid[k]
         iw = world_inertia(kin, ld, w, b)
         mass = f64(ld.body_mass[w % ld.body_mass.shape[0], b])
