@@ -130,7 +130,7 @@ void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, i
   int in_play = 0;
   for (i64 h = t.tbody_geomadr[k]; h < t.tbody_geomadr[k] + t.tbody_geomnum[k]; h++) {
     f64* w = s.geom_pure + 6 * h;
-    if (s.geom_pure_pass[h] != s.pass[0]) {  // the pass did not evaluate it (an RK4 stage)
+    if (s.geom_pure_pass[h] != s.pass[0]) {  // not evaluated: an RK4 stage, a body held again
       PureGeomWrench(d, t, s, static_cast<int>(h), com, w);
       s.geom_pure_pass[h] = s.pass[0];
     }

@@ -31,7 +31,8 @@ constexpr int kReadingSize = 7;
 // Sets out (kReadingSize) to the reading of tagged geom g (an index into tgeom_*) from the
 // state of the last pass on d: each geom's pure wrench is what the pass's pure model added to
 // its body's sum (s.geom_pure, written by PureWrenches), or, for a geom the pass did not
-// evaluate (a body an RK4 stage keeps), the sum of its element forces, computed here once.
+// evaluate (a body an RK4 stage keeps, or one the mechanism treatment held again without its
+// pure model: mechanism.h), the sum of its element forces, computed here once.
 void GeomReading(const mjModel* m, const mjData* d, const Tables& t, State& s, int g,
                  f64 out[kReadingSize]);
 
