@@ -430,6 +430,16 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
       return x;
     };
     auto putd = [&](i64 r, i64 c, f64 x) { std::memcpy(at(r, c), &x, 8); };
+    // Vertex (r, c)'s surface h [m], its room under an intruder's floor, cap = floor - h [m]
+    // (+inf: none; below kSoilContact: a wall), and the cone's base there, a = h + t d [m].
+    struct Column {
+      f64 h, cap, a;
+    };
+    auto column = [&](i64 r, i64 c) {
+      i64 v = r * ncol + c;
+      f64 h = grid[v] + soil[kSoilHead + v];
+      return Column{h, floor[v] - h, h + t * getd(r, c)};
+    };
     for (i64 r = b0; r <= b1; r++) {
       for (i64 c = a0; c <= a1; c++) {
         bool in = r >= sd.r0 && r <= sd.r1 && c >= sd.c0 && c <= sd.c1;
@@ -462,14 +472,11 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
     bool open = false;
     for (i64 r = b0; r <= b1; r++) {
       for (i64 c = a0; c <= a1; c++) {
-        i64 v = r * ncol + c;
-        f64 h = grid[v] + soil[kSoilHead + v];
-        f64 cap = floor[v] - h;
-        f64 a = h + t * getd(r, c);
-        if (cap < kSoilContact || !std::isfinite(a)) continue;
-        amin = std::min(amin, a);
-        if (cap < kInf) {
-          room += cap;
+        Column k = column(r, c);
+        if (k.cap < kSoilContact || !std::isfinite(k.a)) continue;
+        amin = std::min(amin, k.a);
+        if (k.cap < kInf) {
+          room += k.cap;
         } else {
           open = true;
         }
@@ -483,11 +490,9 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
         f64 hb = amin + inc, vol = 0.0;
         for (i64 r = b0; r <= b1; r++) {
           for (i64 c = a0; c <= a1; c++) {
-            i64 v = r * ncol + c;
-            f64 h = grid[v] + soil[kSoilHead + v];
-            f64 cap = floor[v] - h;
-            if (cap < kSoilContact) continue;
-            f64 q = std::min(hb - (h + t * getd(r, c)), cap);
+            Column k = column(r, c);
+            if (k.cap < kSoilContact) continue;
+            f64 q = std::min(hb - k.a, k.cap);
             if (q > 0.0) vol += q;
           }
         }
@@ -500,13 +505,10 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
       i64 m = 0, p = 0;
       for (i64 r = b0; r <= b1; r++) {
         for (i64 c = a0; c <= a1; c++) {
-          i64 v = r * ncol + c;
-          f64 h = grid[v] + soil[kSoilHead + v];
-          f64 cap = floor[v] - h;
-          f64 a = h + t * getd(r, c);
-          if (cap < kSoilContact || !(a < hb)) continue;
-          starts[m++] = Key(a);
-          if (a + cap < hb) ends[p++] = Key(a + cap);
+          Column k = column(r, c);
+          if (k.cap < kSoilContact || !(k.a < hb)) continue;
+          starts[m++] = Key(k.a);
+          if (k.a + k.cap < hb) ends[p++] = Key(k.a + k.cap);
         }
       }
       i64* spare = sd.n + 4 * nb <= nwork ? ends + nb : nullptr;
@@ -543,9 +545,8 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
         bool border = (r == b0 && b0 > 1) || (r == b1 && b1 < nrow - 2) || (c == a0 && a0 > 1) ||
                       (c == a1 && a1 < ncol - 2);
         if (!border) continue;
-        i64 v = r * ncol + c;
-        f64 h = grid[v] + soil[kSoilHead + v];
-        if (fits && floor[v] - h >= kSoilContact && top > h + t * getd(r, c)) {
+        Column k = column(r, c);
+        if (fits && k.cap >= kSoilContact && top > k.a) {
           spills = true;
           break;
         }
@@ -558,13 +559,11 @@ bool Cone(const f64* prm, const f64* grid, f64* soil, const f64* floor, const Se
     f64 laid = 0.0;
     for (i64 r = b0; r <= b1; r++) {
       for (i64 c = a0; c <= a1; c++) {
-        i64 v = r * ncol + c;
-        f64 h = grid[v] + soil[kSoilHead + v];
-        f64 cap = floor[v] - h;
-        if (cap < kSoilContact) continue;
-        f64 q = fits ? std::min(top - (h + t * getd(r, c)), cap) : cap;
-        if (q > 0.0 && std::isfinite(h + t * getd(r, c))) {
-          soil[kSoilHead + v] += q;
+        Column k = column(r, c);
+        if (k.cap < kSoilContact) continue;
+        f64 q = fits ? std::min(top - k.a, k.cap) : k.cap;
+        if (q > 0.0 && std::isfinite(k.a)) {
+          soil[kSoilHead + r * ncol + c] += q;
           laid += q;
         }
       }
