@@ -668,6 +668,18 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
   f64 t = prm[surface::kTanRepose];
   const f64 lim[3] = {t * prm[kDx], t * prm[kDy], t * std::hypot(prm[kDx], prm[kDy])};
   Queue q{queue, nrow * ncol};
+  // Settles vertex (r, c) with its neighbours at steps (row step, column step, limit kind), in
+  // order; false (nothing done) if an intruder presses on it.
+  auto settle = [&](i64 r, i64 c, const auto& steps) {
+    Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
+    if (!vi.free) return false;
+    f64 hi = vi.h;
+    for (const auto& n : steps) {
+      hi = SettleInto(grid, soil, o, floor, mark, nrow, ncol, lim[n[2]], q, top, r * ncol + c, r, c,
+                      hi, vi.f, n[0], n[1]);
+    }
+    return true;
+  };
   // The sweeps: each pair of a box once.
   i64 area = 0;
   for (i64 b = 0; b < nbox; b++) {
@@ -679,16 +691,7 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
     if (r0 > r1 || c0 > c1) continue;
     area += (r1 - r0 + 1) * (c1 - c0 + 1);
     for (i64 r = r0; r <= r1; r++) {
-      for (i64 c = c0; c <= c1; c++) {
-        Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
-        if (!vi.free) continue;
-        i64 i = r * ncol + c;
-        f64 hi = vi.h;
-        for (const auto& n : kSweep) {
-          hi = SettleInto(grid, soil, o, floor, mark, nrow, ncol, lim[n[2]], q, top, i, r, c, hi,
-                          vi.f, n[0], n[1]);
-        }
-      }
+      for (i64 c = c0; c <= c1; c++) settle(r, c, kSweep);
     }
   }
   // Then vertex by vertex wherever material moved.
@@ -696,16 +699,8 @@ bool Relax(const f64* prm, const f64* grid, f64* soil, const f64* floor, i64* ma
   const i64 budget = kMaxSweeps * visits;
   while (q.count > 0 && visits < budget) {
     i64 i = q.Pop();
-    i64 r = i / ncol, c = i % ncol;
     mark[i] = -1;
-    Vertex vi = Free(grid, soil, o.oh, floor, r, c, ncol);
-    if (!vi.free) continue;
-    f64 hi = vi.h;
-    for (const auto& n : kNeighbours) {
-      hi = SettleInto(grid, soil, o, floor, mark, nrow, ncol, lim[n[2]], q, top, i, r, c, hi, vi.f,
-                      n[0], n[1]);
-    }
-    visits += 8;
+    if (settle(i / ncol, i % ncol, kNeighbours)) visits += 8;
   }
   stats[kStatVisits] += static_cast<f64>(visits);
   pending[0] = pending[2] = static_cast<f64>(INT32_MAX);

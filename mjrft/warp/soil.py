@@ -223,17 +223,31 @@ def sweep_box(sf: Surface, gr: Ground, w: int, bx: int, tail: int, count: int, t
         return tail, count, top, 0
     for r in range(r0, r1 + 1):
         for c in range(c0, c1 + 1):
-            i = r * ncol + c
-            hi = height_at(sf, w, r, c)
-            fi = gr.floor[w, i]
-            if not (fi >= hi + surface.SOIL_CONTACT):
-                continue
-            for q in range(4):
-                a, b, kind = sweep_step(q)
-                tail, count, top = settle_into(sf, gr, w, limit(sf, kind), tail, count, top, i,
-                                               r, c, hi, fi, a, b)  # fmt: skip
-                hi = height_at(sf, w, r, c)
+            tail, count, top, _free = settle_vertex(sf, gr, w, r, c, True, tail, count, top)
     return tail, count, top, (r1 - r0 + 1) * (c1 - c0 + 1)
+
+
+@wp.func
+def settle_vertex(sf: Surface, gr: Ground, w: int, r: int, c: int, sweep: bool, tail: int,
+                  count: int, top: f64):  # fmt: skip
+    """Settles vertex (r, c) with its neighbours in order (the sweep's four, else all eight),
+    unless an intruder presses on it (engine Relax's settle). Returns (tail, count, top, free)."""
+    i = r * sf.ncol + c
+    hi = height_at(sf, w, r, c)
+    fi = gr.floor[w, i]
+    if not (fi >= hi + surface.SOIL_CONTACT):
+        return tail, count, top, False
+    steps = int(8)
+    if sweep:
+        steps = 4
+    for q in range(steps):
+        a, b, kind = neighbour(q)
+        if sweep:
+            a, b, kind = sweep_step(q)
+        tail, count, top = settle_into(sf, gr, w, limit(sf, kind), tail, count, top, i, r, c,
+                                       hi, fi, a, b)  # fmt: skip
+        hi = height_at(sf, w, r, c)
+    return tail, count, top, True
 
 
 @wp.func
@@ -268,19 +282,11 @@ def relax(sf: Surface, gr: Ground, w: int, at: int, nbox: int, pend: int, top: f
     while count > 0 and visits < budget:  # then vertex by vertex wherever material moved
         i = gr.queue[w, ((tail - count) % n + n) % n]
         count -= 1
-        r = i // ncol
-        c = i % ncol
         gr.owner[w, i] = -1
-        hi = height_at(sf, w, r, c)
-        fi = gr.floor[w, i]
-        if not (fi >= hi + surface.SOIL_CONTACT):
-            continue
-        for q in range(8):
-            a, b, kind = neighbour(q)
-            tail, count, top = settle_into(sf, gr, w, limit(sf, kind), tail, count, top, i, r,
-                                           c, hi, fi, a, b)  # fmt: skip
-            hi = height_at(sf, w, r, c)
-        visits += 8
+        tail, count, top, free = settle_vertex(sf, gr, w, i // ncol, i % ncol, False, tail,
+                                               count, top)  # fmt: skip
+        if free:
+            visits += 8
     gr.stats[w, VISITS] = gr.stats[w, VISITS] + f64(visits)
     empty(gr, w, pend)
     if count == 0:
