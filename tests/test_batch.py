@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco.batch import SimulationError
+from soil_scenes import PLATE
 
 import mjrft
 from mjrft import simulate
@@ -126,19 +127,9 @@ def test_a_failing_copy_is_named_and_the_others_step_on():
     np.testing.assert_array_equal(bf.batch.bind("time"), [m.opt.timestep, 0.0, m.opt.timestep])
 
 
-FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
-<custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
-<numeric name="mjrft:deform_cell" data="0.0025"/>
-<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="300"/></tuple></custom>
-<worldbody><body name="foot" pos="0 0 0.005"><joint name="z" type="slide" axis="0 0 1"/>
-<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body></worldbody>
-<actuator><position joint="z" kp="1e5" kv="2000"/></actuator></mujoco>"""
-
-
 def test_each_copy_has_its_own_ground():
     """Two copies pressed to different depths carry the grounds their MjData get alone."""
-    field = GranularField(mjrft.load_model(FOOT))
+    field = GranularField(mjrft.load_model(PLATE))
     bf = BatchedField(field, nsim=2, nthread=1)
     bf.reset()
     alone = [bf.batch.get_data(i) for i in range(2)]

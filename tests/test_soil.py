@@ -10,6 +10,7 @@ import mujoco
 import numpy as np
 import pytest
 from mujoco.batch import Batch
+from soil_scenes import BLADE, BOX, FOOT
 
 import mjrft
 from mjrft.core import soil as rules
@@ -28,16 +29,6 @@ FRESH_RTOL = 0.015
 # A relaxed pair of neighbours may be steeper than the repose slope by SLOPE_TOLERANCE of its
 # rise (or SLOPE_SLACK, 1 um, if more), plus rounding.
 SLOPE_RTOL = rules.SLOPE_TOLERANCE + 1e-6
-
-FOOT = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
-<custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
-<numeric name="mjrft:deform_cell" data="{cell}"/>
-<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="300"/></tuple></custom>
-<worldbody><body name="foot" pos="0 0 0.005"><joint name="z" type="slide" axis="0 0 1"/>
-<geom name="foot" type="{shape}" size="{size}" mass="1"/></body></worldbody>
-<actuator><position joint="z" kp="1e5" kv="2000"/></actuator></mujoco>"""
-BOX = {"shape": "box", "size": "0.025 0.025 0.005"}
 
 
 def load(xml: str, **options) -> tuple[mujoco.MjModel, GranularField, mujoco.MjData]:
@@ -350,16 +341,6 @@ def test_relaxation_work_follows_the_feet_not_the_box_between_them():
     assert c["unrelaxed"] == 0
     assert steepest_free_excess(soil) <= SLOPE_RTOL
     assert abs(soil.volume()) <= VOLUME_RTOL * c["excavated"]
-
-
-BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
-<custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.05 -0.04 -0.1 0.15 0.04 0.05"/>
-<numeric name="mjrft:deform_cell" data="0.0025"/>
-<tuple name="mjrft:intruders"><element objtype="geom" objname="blade" prm="400"/></tuple></custom>
-<worldbody><body name="blade" pos="0 0 0"><joint name="x" type="slide" axis="1 0 0"/>
-<geom name="blade" type="box" size="0.006 0.02 0.02" pos="0 0 0.01" mass="1"/></body>
-</worldbody><actuator><velocity joint="x" kv="2000"/></actuator></mujoco>"""
 
 
 def test_a_dragged_blade_pushes_a_pile_ahead_and_leaves_a_trench_behind():

@@ -18,6 +18,7 @@ pytest.importorskip("mujoco_warp")
 
 import mujoco_warp as mjw
 import warp as wp
+from soil_scenes import BLADE, PLATE
 
 import mjrft
 import mjrft.warp as mw
@@ -34,22 +35,6 @@ VOLUME_RTOL = 1e-9
 #: The counters' volumes sum the same cuts in the same order as the engine's: rounding only.
 COUNTER_RTOL = 1e-12
 
-PLATE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
-<custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.06 -0.06 -0.1 0.06 0.06 0.05"/>
-<numeric name="mjrft:deform_cell" data="0.0025"/>
-<tuple name="mjrft:intruders"><element objtype="geom" objname="foot" prm="300"/></tuple></custom>
-<worldbody><body name="foot" pos="0 0 0.005"><joint name="z" type="slide" axis="0 0 1"/>
-<geom name="foot" type="box" size="0.025 0.025 0.005" mass="1"/></body></worldbody>
-<actuator><position joint="z" kp="1e5" kv="2000"/></actuator></mujoco>"""
-BLADE = """<mujoco><option timestep="0.002" integrator="implicitfast" gravity="0 0 0"/>
-<custom><text name="mjrft:material" data="glass_beads"/>
-<numeric name="mjrft:region" data="-0.05 -0.04 -0.1 0.15 0.04 0.05"/>
-<numeric name="mjrft:deform_cell" data="0.0025"/>
-<tuple name="mjrft:intruders"><element objtype="geom" objname="blade" prm="400"/></tuple></custom>
-<worldbody><body name="blade" pos="0 0 0"><joint name="x" type="slide" axis="1 0 0"/>
-<geom name="blade" type="box" size="0.006 0.02 0.02" pos="0 0 0.01" mass="1"/></body>
-</worldbody><actuator><velocity joint="x" kv="2000"/></actuator></mujoco>"""
 #: Ground wide enough for the cone deposit's box to fit in the work row (the scenes above, whose
 #: intruders span a large part of the grid, fall back to the weighted rim at every update).
 WIDE_PLATE = PLATE.replace(
