@@ -22,6 +22,7 @@ pytest.importorskip("mujoco_warp")
 import mujoco_warp as mjw
 import warp as wp
 from mjrft.envs import hexapod_sand
+from warp_worlds import put, world_kinematics
 
 import mjrft
 import mjrft.warp as mw
@@ -121,21 +122,6 @@ def initial_states(name, mjm, mjd):
         else:  # the ellipsoid rig: every joint moving
             qvel[w] = 0.5 * (w + 1) * np.random.default_rng(w).normal(size=mjm.nv)
     return qpos, qvel
-
-
-def put(mjm, mjd, qpos, qvel):
-    m = mjw.put_model(mjm)
-    d = mjw.put_data(mjm, mjd, nworld=len(qpos))
-    d.qpos.assign(qpos.astype(np.float32))
-    d.qvel.assign(qvel.astype(np.float32))
-    return m, d
-
-
-def world_kinematics(mjd, d, w):
-    """Put world w's MuJoCo Warp kinematics into mjd (float32 values, held in float64)."""
-    for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
-        dst = getattr(mjd, name)
-        dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
 
 
 @pytest.mark.parametrize(

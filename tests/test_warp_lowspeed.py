@@ -21,6 +21,7 @@ pytest.importorskip("mujoco_warp")
 
 import mujoco_warp as mjw
 import warp as wp
+from warp_worlds import put, world_kinematics
 
 import mjrft
 import mjrft.warp as mw
@@ -68,21 +69,6 @@ def sphere(low_speed: str, integrator: str = "Euler"):
     mjm = mujoco.MjModel.from_xml_path(str(models_dir() / "sphere_drop.xml"))
     mjm.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     return mjm, mujoco.MjData(mjm), mw.WarpField(mjm, device=DEVICE, low_speed=low_speed)
-
-
-def put(mjm, mjd, qpos, qvel):
-    m = mjw.put_model(mjm)
-    d = mjw.put_data(mjm, mjd, nworld=len(qpos))
-    d.qpos.assign(qpos.astype(np.float32))
-    d.qvel.assign(qvel.astype(np.float32))
-    return m, d
-
-
-def world_kinematics(cpu_d, d, w):
-    """Put world w's MuJoCo Warp kinematics into the CPU MjData (float32 values in float64)."""
-    for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
-        dst = getattr(cpu_d, name)
-        dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
 
 
 def test_free_body_decisions_and_wrenches_are_the_engines_on_the_same_states():

@@ -19,6 +19,7 @@ pytest.importorskip("mujoco_warp")
 import mujoco_warp as mjw
 import warp as wp
 from soil_scenes import BLADE, PLATE
+from warp_worlds import world_kinematics
 
 import mjrft
 import mjrft.warp as mw
@@ -73,9 +74,7 @@ def follow(xml: str, ctrl: np.ndarray, nstep: int):
             time = d.time.numpy().copy()  # the pass runs at the step's start time
             mjw.step(m, d)
             for w, cd in enumerate(cpu_d):  # the configuration the step's pass followed
-                for name in ("xpos", "xmat", "xipos", "ximat", "cvel", "subtree_com", "geom_xpos"):
-                    dst = getattr(cd, name)
-                    dst[:] = getattr(d, name).numpy()[w].reshape(dst.shape)
+                world_kinematics(cd, d, w)
                 cd.time = float(time[w])
                 cpu_wrench[w] = cpu.wrench(cd)
         wrench = field.wrenches(d)
