@@ -304,10 +304,9 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
   f64* g = s.mech_vec + VecLen(m, t);  // M^-1 sum J^T W: the medium's generalized acceleration
   for (int j = 0; j < nv; j++) g[j] = 0.0;
   for (int a = 0; a < n; a++) {
-    i64 k = rows[a];
-    const f64* w = s.mech_in_held[k] ? s.mech_in_prev + 6 * k : s.wrench + 6 * t.tbody_bodyid[k];
     for (int r = 0; r < 6; r++) {
-      for (int j = 0; j < nv; j++) g[j] += s.mech_J[nv * (6 * a + r) + j] * w[r];
+      f64 w = Reference(t, s, rows[a], r);  // a body held at the last pass: its hold
+      for (int j = 0; j < nv; j++) g[j] += s.mech_J[nv * (6 * a + r) + j] * w;
     }
   }
   ChoSolve(s.mech_L, nv, nv, g);
