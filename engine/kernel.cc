@@ -3,10 +3,11 @@
 // Layout (chosen from measurements on a 2-core machine, benchmarks/kernel.py):
 //
 // 1. BodyWrench only: a pass puts a chunk's centroids, normals and velocities in the world
-//    frame; an element the quadrature's bounds cannot clear is held aside, and after the pass
-//    the held ones are tested exactly from their corners (quadrature::CornerValues, Triage) and
-//    only those the free surface or the leading boundary crosses, or near the surface, are
-//    clipped (quadrature::ClipHeld). Kept out of the first pass, this work does not slow it;
+//    frame; an element the quadrature's bounds show dry or trailing at every corner leaves at
+//    once, one they cannot clear is held aside, and after the pass the held ones are tested
+//    exactly from their corners (quadrature::CornerValues, Triage) and only those the free
+//    surface or the leading boundary crosses, or near the surface, are clipped
+//    (quadrature::ClipHeld). Kept out of the first pass, this work does not slow it;
 // 2. law::Gather, scalar and branch-free: every element is written to the next scratch slot and
 //    the slot advances only if the element acts (submerged, inside the region, leading), so
 //    trailing and dry elements cost only this pass and no branch is mispredicted;
@@ -28,6 +29,10 @@
 namespace mjrft::kernel {
 
 using law::kChunk;
+
+// 1 plus a margin far above the round-off of a corner's depth against the centroid's (~1e-16
+// of the coordinates), far below any element's reach.
+constexpr f64 kDrySlack = 1.0 + 1e-9;
 
 Medium MediumOf(const Tables& t) {
   return {t.coef,        t.ncoef,        t.alpha_y,         t.zeta,
@@ -84,6 +89,15 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
     kz = oz - gx * ox - gy * oy;
     top = prm[surface::kZ0];
   }
+  // A corner's depth differs from the centroid's by at most reach under a level surface, and
+  // by reach sqrt(1 + |grad|^2) under a plane: an element farther above it is dry at every
+  // corner (what Triage would find). Under an uneven surface the rise adds to it (band).
+  f64 dry = band;
+  if (flat) dry = kDrySlack;
+  if (plane) {
+    f64 gx = prm[surface::kGx], gy = prm[surface::kGy];
+    dry = kDrySlack * std::sqrt(1.0 + gx * gx + gy * gy);
+  }
   const f64 lam_rho = law::DynamicCoefficient(med.coef, med.ncoef);
   const bool dyn = lam_rho > 0.0;
   // The body's motion in its own frame, v(c) = lin_b + ang_b x c at the body point c, for the
@@ -110,7 +124,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       f64 cx = cf[3 * i], cy = cf[3 * i + 1], cz = cf[3 * i + 2];
       f64 depth = top - (k0 * cx + k1 * cy + k2 * cz + kz);
       f64 ri = e.reach[i];
-      if (depth <= -band * ri) continue;
+      if (depth <= -dry * ri) continue;
       f64 px = r00 * cx + r01 * cy + r02 * cz + ox;
       f64 py = r10 * cx + r11 * cy + r12 * cz + oy;
       f64 pz = r20 * cx + r21 * cy + r22 * cz + oz;
@@ -145,8 +159,10 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       // normals are unit and within spread of the element's), compared without a square root.
       f64 spread = e.patch[kPatchSize * i + quadrature::kPatchSpread];
       f64 excess = std::fabs(lead) - spin * ri;
-      if (depth < band * ri ||
-          (excess <= 0.0 || excess * excess <= spread * spread * (vx * vx + vy * vy + vz * vz))) {
+      bool unsure =
+          excess <= 0.0 || excess * excess <= spread * spread * (vx * vx + vy * vy + vz * vz);
+      if (!unsure && lead < 0.0) continue;  // trailing at every corner: nothing of it acts
+      if (unsure || depth < band * ri) {
         later[nl] = i;
         held[quadrature::kHeldDepth][nl] = depth;
         held[quadrature::kHeldPoint][nl] = px;
