@@ -66,7 +66,7 @@ int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, in
   int evaluated = 0, act = 0;
   for (i64 g = t.tbody_geomadr[k]; g < t.tbody_geomadr[k] + t.tbody_geomnum[k]; g++) {
     if (s.cull[g]) continue;
-    act += GeomWrench(d, t, s, g, omega, v, com, com, out, s.scratch);
+    act += GeomWrench(d, t, s, g, omega, v, com, com, out, nullptr);
     evaluated += t.tgeom_elemnum[g];
   }
   if (acting) *acting = act;

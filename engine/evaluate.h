@@ -21,8 +21,8 @@ f64 GeomTop(const mjData* d, const Tables& t, const State& s, int g);
 bool Culled(const mjData* d, const Tables& t, const State& s, int g);
 
 // Sets out (6) to the RFT wrench on tagged body k's geoms in play (not culled this pass), the
-// body moving with the twist (v (3) at the CoM [m/s], omega (3) [rad/s]). Element forces go to
-// s.scratch. Returns #evaluated; acting (if not null) gets #acting.
+// body moving with the twist (v (3) at the CoM [m/s], omega (3) [rad/s]); its element forces
+// are not kept. Returns #evaluated; acting (if not null) gets #acting.
 int TwistWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k, const f64* v,
                 const f64* omega, f64* out, int* acting);
 

@@ -103,7 +103,6 @@
   X(f64, user_in, nbody * 6, "other applied wrenches for the explicit path")                \
   X(f64, xfrc_last, nbody * 6, "what the last installed pass wrote into this xfrc_applied") \
   X(f64, elem_force, nelem * 3, "element forces of this pass's pure model [N]")             \
-  X(f64, scratch, nelem * 3, "element forces of the treatment's extra evaluations")         \
   X(i64, cull, ng, "1 where the geom cannot touch the medium this pass")                    \
   X(i64, keep, nk, "1: keeps its RK4 step's first-stage wrench")                            \
   X(i64, frz, nk, "1: feels the model with stage 1's twist")                                \

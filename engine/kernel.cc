@@ -20,7 +20,6 @@
 #include "kernel.h"
 
 #include <cmath>
-#include <vector>
 
 #include "law.h"
 #include "quadrature.h"
@@ -115,10 +114,10 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
   for (i64 c0 = start; c0 < stop; c0 += kChunk) {
     int k = 0, nl = 0;
     i64 c1 = stop < c0 + kChunk ? stop : c0 + kChunk;
+    if (elem_force) {
+      for (i64 i = 3 * c0; i < 3 * c1; i++) elem_force[i] = 0.0;
+    }
     for (i64 i = c0; i < c1; i++) {
-      elem_force[3 * i] = 0.0;
-      elem_force[3 * i + 1] = 0.0;
-      elem_force[3 * i + 2] = 0.0;
       // Dry elements leave here (a well-predicted branch: neighbouring triangles of a mesh are
       // dry together), after three multiply-adds.
       f64 cx = cf[3 * i], cy = cf[3 * i + 1], cz = cf[3 * i + 2];
@@ -226,10 +225,12 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       f64 fx = buf[law::kFx][j], fy = buf[law::kFx + 1][j], fz = buf[law::kFx + 2][j];
       if (fx == 0.0 && fy == 0.0 && fz == 0.0) continue;
       count++;
-      f64* f = elem_force + 3 * idx[j];
-      f[0] = fx;
-      f[1] = fy;
-      f[2] = fz;
+      if (elem_force) {
+        f64* f = elem_force + 3 * idx[j];
+        f[0] = fx;
+        f[1] = fy;
+        f[2] = fz;
+      }
       f64 ax = buf[law::kPx][j] - com[0], ay = buf[law::kPx + 1][j] - com[1];
       f64 az = buf[law::kPx + 2][j] - com[2];
       wrench[0] += fx;
@@ -347,11 +348,10 @@ void Trajectory(const Elements& e, i64 n, const f64* co, i64 ncoef, f64 alpha_y,
   prm[surface::kZ0] = surface_z;
   const f64 grid[1] = {0.0};
   const Medium med = {co, ncoef, alpha_y, zeta, prm, grid, false, region};
-  std::vector<f64> scratch(3 * n);  // element forces, not returned
   for (i64 i = 0; i < 6 * T; i++) out[i] = 0.0;
   for (i64 t = 0; t < T; t++) {
     BodyWrench(e, 0, n, med, grid, rot + 9 * t, pos + 3 * t, ang_vel + 3 * t, lin_vel + 3 * t,
-               pos + 3 * t, point + 3 * t, out + 6 * t, scratch.data(), nullptr);
+               pos + 3 * t, point + 3 * t, out + 6 * t, nullptr, nullptr);
   }
 }
 

@@ -57,8 +57,9 @@ Elements ElementsOf(const Tables& t);
 // row-major; pos (3) body origin [m]; omega (3) angular velocity [rad/s]; v_ref (3) linear
 // velocity [m/s] of the world point p_ref (3) moving with the body; com (3) the point torque is
 // taken about [m]; all world frame. elem_force (n, 3): forces [N] written for rows
-// [start, stop), zero where nothing acts. rows: nullptr, or (n, kRow) quadrature points written
-// for the acting elements instead of their forces (rows of the others are left as they are).
+// [start, stop), zero where nothing acts (nullptr: not written). rows: nullptr, or (n, kRow)
+// quadrature points written for the acting elements instead of their forces (rows of the others are
+// left as they are).
 int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const f64* soil,
                const f64* rot, const f64* pos, const f64* omega, const f64* v_ref, const f64* p_ref,
                const f64* com, f64* wrench, f64* elem_force, f64* rows);

@@ -173,7 +173,7 @@ bool AddsNoEnergy(const f64* w, const Body& body, f64 dt, bool semi);
 // 0). Linearised at c xi, the same direction at the speed the step ends with, because a body
 // speeding up from rest (c >> 1) is otherwise linearised far outside J's validity. False (step
 // 3 decides) if the result is not finite, reverses the motion within the step, or gains energy
-// over it. Evaluations write s.scratch.
+// over it.
 bool ImplicitWrench(const mjModel* m, const mjData* d, const Tables& t, State& s, int k,
                     const Body& body, f64 dt, bool semi, f64* w);
 

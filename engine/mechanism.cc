@@ -279,10 +279,30 @@ void HoldSystem(const mjModel* m, const Tables& t, State& s, int n) {
     for (int j = 0; j < nv; j++) x[j] = s.mech_J[nv * r + j];
     ForwardSolve(s.mech_L, nv, nv, x);
   }
+  // A = X^T X, four entries of a row at a time: four independent sums (each in the order of
+  // one) instead of one chain of dependent additions.
+  const f64* x = s.mech_X;
   for (int r = 0; r < 6 * n; r++) {
-    for (int c = r; c < 6 * n; c++) {
+    const f64* xr = x + static_cast<i64>(nv) * r;
+    int c = r;
+    for (; c + 4 <= 6 * n; c += 4) {
+      const f64* x0 = x + static_cast<i64>(nv) * c;
+      f64 a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+      for (int j = 0; j < nv; j++) {
+        a0 += xr[j] * x0[j];
+        a1 += xr[j] * x0[nv + j];
+        a2 += xr[j] * x0[2 * nv + j];
+        a3 += xr[j] * x0[3 * nv + j];
+      }
+      const f64 acc[4] = {a0, a1, a2, a3};
+      for (int q = 0; q < 4; q++) {
+        s.mech_A[lda * r + c + q] = acc[q];
+        s.mech_A[lda * (c + q) + r] = acc[q];
+      }
+    }
+    for (; c < 6 * n; c++) {
       f64 acc = 0.0;
-      for (int j = 0; j < nv; j++) acc += s.mech_X[nv * r + j] * s.mech_X[nv * c + j];
+      for (int j = 0; j < nv; j++) acc += xr[j] * x[nv * c + j];
       s.mech_A[lda * r + c] = acc;
       s.mech_A[lda * c + r] = acc;
     }
