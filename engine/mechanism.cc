@@ -366,7 +366,6 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
   // rhs = -J_S u / dt - A_S,all W (W: the reference for held rows, the given wrenches for the
   // others)
   f64* rhs = s.mech_vec + 2 * VecLen(m, t);
-  f64 top = 0.0;
   int q = 0;
   for (int a = 0; a < n; a++) {
     if (code[rows[a]] != kStick) continue;
@@ -381,7 +380,6 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
         }
       }
       rhs[q] = acc;
-      top = std::max(top, s.mech_A[lda * r + r]);
     }
   }
   f64* lhs = s.mech_S;
@@ -406,7 +404,8 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
         }
       }
     }
-    if (!Cholesky(lhs, lda, h, kHoldRegularisation * top + 1e-300)) {
+    for (int j = 0; j < h; j++) lhs[lda * j + j] *= 1.0 + kHoldRegularisation;
+    if (!Cholesky(lhs, lda, h, 1e-300)) {
       key[0] = -1;
       return false;
     }

@@ -582,8 +582,8 @@ def mechanism_wrenches(field, data, w: np.ndarray, decisions: list[int], st: dic
             w_all = np.where(np.repeat(held, 6), ref.ravel(), out.ravel())
             rhs = -(J[s_rows] @ u) / dt - A[s_rows] @ w_all
             lhs = A[np.ix_(s_rows, s_rows)]
-            eps = HOLD_REGULARISATION * np.max(np.diag(lhs)) + 1e-300
-            delta = np.linalg.solve(lhs + eps * np.eye(len(s_rows)), rhs)
+            lhs = lhs + np.diag(HOLD_REGULARISATION * np.diag(lhs) + 1e-300)
+            delta = np.linalg.solve(lhs, rhs)
             out[held] = ref[held] + delta.reshape(-1, 6)
         worst, margin, slip = -1, 0.0, None
         for a in np.flatnonzero(held):

@@ -295,3 +295,45 @@ def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
     np.testing.assert_allclose(np.array(fast), np.array(slow), rtol=1e-6, atol=1e-12)
     assert fast_dec == slow_dec
     assert sum(d.count(lowspeed.STICK) for d in slow_dec) > 300  # bodies were held
+
+
+def _stance_benchmark():
+    """benchmarks/stance.py as a module (its light quadruped's MJCF)."""
+    import importlib.util
+
+    path = MODELS.parent / "benchmarks" / "stance.py"
+    spec = importlib.util.spec_from_file_location("stance_benchmark", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+#: The stance targets of a standing robot: torso drift [m] and step-to-step change of the total
+#: RFT vertical force [fraction of the weight] (docs/stability.md, "Mechanisms").
+STANCE_DRIFT_M, STANCE_FORCE_CHANGE = 1e-5, 0.01
+
+
+@pytest.mark.parametrize(
+    ("integrator", "timestep", "kp"),
+    [("euler", 1e-3, 10.0), ("euler", 2e-3, 100.0), ("rk4", 1e-3, 1.0)],
+)
+def test_a_light_quadruped_on_soft_servos_holds(integrator, timestep, kp):
+    """benchmarks/stance.py's 0.6 kg quadruped (15 g shins) settled 1 s, then standing 1 s: its
+    hold system has a nearly null mode; solved exactly, two feet at a time were released every
+    step and it crept by 0.5 mm a second with its load jumping between diagonal feet."""
+    stance = _stance_benchmark()
+    model = mjrft.load_model(stance.quadruped(kp, 0.015, timestep, integrator))
+    data = mujoco.MjData(model)
+    fld = GranularField(model)
+    weight = float(model.body_subtreemass[1]) * -model.opt.gravity[2]
+    for _ in range(round(1.0 / timestep)):
+        mujoco.mj_step(model, data)
+    start = data.xpos[1].copy()
+    lift = []
+    for _ in range(round(1.0 / timestep)):
+        mujoco.mj_step(model, data)
+        lift.append(fld.wrench_of(data)[fld.body_ids, 2].sum())
+        assert np.all(fld.decision_of(data) == lowspeed.STICK)
+    assert np.abs(data.xpos[1] - start).max() <= STANCE_DRIFT_M
+    assert np.abs(np.diff(lift)).max() <= STANCE_FORCE_CHANGE * weight
+    assert lift[-1] == pytest.approx(weight, rel=1e-6)  # the medium carries it

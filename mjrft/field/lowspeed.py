@@ -123,8 +123,7 @@ class LowSpeed:
         return self.mode == "stick"
 
 
-#: Relative regularisation of the mechanism treatment's hold system: (A + eps I) with eps this
-#: fraction of A's largest diagonal gives the least-norm correction to ~1e-10 of its size (A's
-#: eigenvalues for the shipped robots span ~1e1-1e6; eps ~1e-6 absolute); engine/mechanism.h's
-#: kHoldRegularisation.
-HOLD_REGULARISATION = 1e-12
+#: Regularisation of the mechanism treatment's hold system relative to each row's diagonal,
+#: A + eps diag(A): modes nearly null after scaling A to a unit diagonal are treated as null
+#: (engine/mechanism.h's kHoldRegularisation says why).
+HOLD_REGULARISATION = 1e-5

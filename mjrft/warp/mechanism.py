@@ -416,7 +416,6 @@ def solve_holds(mc: Mech, force: wp.array2d(dtype=vec3d), torque: wp.array2d(dty
             h += 6
     if h == 0:
         return True
-    top = _Z
     q = int(0)
     for a in range(n):
         if code[w, mc.rows[w, a]] != ls.STICK:
@@ -433,7 +432,6 @@ def solve_holds(mc: Mech, force: wp.array2d(dtype=vec3d), torque: wp.array2d(dty
                         wv = reference(mc, force, torque, w, k2, c0)
                     acc -= mc.a[w, lda * r + 6 * a2 + c0] * wv
             mc.rhs[w, q] = acc
-            top = wp.max(top, mc.a[w, lda * r + r])
             q += 1
     qr = int(0)
     for a in range(n):
@@ -448,7 +446,9 @@ def solve_holds(mc: Mech, force: wp.array2d(dtype=vec3d), torque: wp.array2d(dty
                     mc.s[w, lda * qr + qc] = mc.a[w, lda * (6 * a + r0) + 6 * a2 + c0]
                     qc += 1
             qr += 1
-    if not cholesky(mc.s, w, lda, h, HOLD_REGULARISATION * top + f64(1e-300)):
+    for j in range(h):
+        mc.s[w, lda * j + j] = mc.s[w, lda * j + j] * (_ONE + HOLD_REGULARISATION)
+    if not cholesky(mc.s, w, lda, h, f64(1e-300)):
         return False
     cho_solve(mc.s, w, lda, h, mc.rhs, 0)
     q = int(0)
