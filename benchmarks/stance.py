@@ -1,7 +1,7 @@
 """A light quadruped standing on sand on soft position servos, swept over stiffness, leg mass,
 timestep and integrator: does the stance hold?
 
-Run: python benchmarks/stance.py [--kp 1 3 10 30 100 300 1000] [--shin 0.015 0.025]
+Run: python benchmarks/stance.py [--kp 1 3 10 30 100 300 1000] [--shin 0.005 0.015 0.025 0.1]
      [--timesteps 0.5 1 2] [--integrators euler implicitfast rk4] [--settle 1] [--hold 5]
 
 The robot (``quadruped``): a 0.4 kg torso on four two-joint legs (hip and knee about y; thigh
@@ -125,7 +125,7 @@ def cell(kp: float, shin: float, timestep: float, integrator: str, settle: float
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--kp", type=float, nargs="+", default=[1, 3, 10, 30, 100, 300, 1000])
-    p.add_argument("--shin", type=float, nargs="+", default=[0.015, 0.025])
+    p.add_argument("--shin", type=float, nargs="+", default=[0.005, 0.015, 0.025, 0.1])
     p.add_argument("--timesteps", type=float, nargs="+", default=[0.5, 1.0, 2.0], help="ms")
     p.add_argument("--integrators", nargs="+", default=list(INTEGRATORS), choices=INTEGRATORS)
     p.add_argument("--settle", type=float, default=1.0)

@@ -64,14 +64,15 @@
 namespace mjrft::mechanism {
 
 // Regularisation of the hold system, relative to each row's own diagonal: A + eps diag(A). A's
-// rows mix forces and torques (mobilities of 1e1 and 1e7 on a 15 g shin), so it is scaled to a
+// rows mix forces and torques (mobilities of 7 and 6,500 on a 15 g shin), so it is scaled to a
 // unit diagonal first; there its null space (wrenches no joint feels) sits at round-off, 1e-16,
-// and a configuration can add a mode that is nearly null: 3e-12 on the light quadruped of
-// benchmarks/stance.py, standing, where the next is 0.1. Stopping the free motion along such a
-// mode exactly takes wrenches of 1e3 N on a 0.6 kg robot, which no leg released alone can be
-// given (step 4 then releases legs at random). At eps 1e-6 such a mode is treated as null (it
-// keeps the wrench of the last pass), and the others are solved to 1e-6 of themselves.
-constexpr f64 kHoldRegularisation = 1e-5;
+// and a configuration can add a mode that is nearly null: 1e-13 to 1.5e-6 on the light quadruped
+// of benchmarks/stance.py standing (5-100 g shins, kp 1-10), where the next is 0.08 or more.
+// Stopping the free motion along such a mode exactly takes wrenches of hundreds of N on a 0.6 kg
+// robot, which no leg released alone can be given (step 4 then releases legs two at a time,
+// alternating). At eps 1e-4 such a mode counts as null (it keeps the wrench of the last pass),
+// and a regular mode is solved to 1e-3 of itself or better.
+constexpr f64 kHoldRegularisation = 1e-4;
 // The medium's resistance to a hold's direction is re-evaluated unless the body has moved less
 // than kResistanceReuseM (CoM, and inertial axes times the body's size) and the direction has
 // turned less than kResistanceReuseRad since it was last evaluated. A held body at rest keeps

@@ -126,4 +126,4 @@ class LowSpeed:
 #: Regularisation of the mechanism treatment's hold system relative to each row's diagonal,
 #: A + eps diag(A): modes nearly null after scaling A to a unit diagonal are treated as null
 #: (engine/mechanism.h's kHoldRegularisation says why).
-HOLD_REGULARISATION = 1e-5
+HOLD_REGULARISATION = 1e-4
