@@ -78,8 +78,12 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
   // The first test of an element is top - (k . c + kz) for its body-frame centroid c: its
   // height below the ceiling, or under a plane (whose ceiling, +inf, would clear nothing) its
   // exact depth z0 + gx x + gy y - z, affine in c. One dot product either way.
+  // A corner's depth differs from the centroid's by at most reach under a level surface, and
+  // by reach sqrt(1 + |grad|^2) under a plane: an element farther above it than that is dry at
+  // every corner (what Triage would find). Under an uneven surface the rise adds to it (band).
   const bool plane = prm[surface::kKind] == surface::kPlane;
   f64 k0 = r20, k1 = r21, k2 = r22, kz = oz;
+  f64 dry = flat ? kDrySlack : band;
   if (plane) {
     f64 gx = prm[surface::kGx], gy = prm[surface::kGy];
     k0 = r20 - gx * r00 - gy * r10;
@@ -87,14 +91,6 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
     k2 = r22 - gx * r02 - gy * r12;
     kz = oz - gx * ox - gy * oy;
     top = prm[surface::kZ0];
-  }
-  // A corner's depth differs from the centroid's by at most reach under a level surface, and
-  // by reach sqrt(1 + |grad|^2) under a plane: an element farther above it is dry at every
-  // corner (what Triage would find). Under an uneven surface the rise adds to it (band).
-  f64 dry = band;
-  if (flat) dry = kDrySlack;
-  if (plane) {
-    f64 gx = prm[surface::kGx], gy = prm[surface::kGy];
     dry = kDrySlack * std::sqrt(1.0 + gx * gx + gy * gy);
   }
   const f64 lam_rho = law::DynamicCoefficient(med.coef, med.ncoef);
