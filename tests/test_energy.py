@@ -3,9 +3,7 @@
 pure model turned the motion within the step, or RK4's stages saw the force jump), each must
 stay within the tolerance."""
 
-import importlib.util
-from pathlib import Path
-
+import benchmark_scripts
 import field_reference as ref
 import mujoco
 import numpy as np
@@ -14,11 +12,7 @@ import pytest
 import mjrft
 from mjrft.field import GranularField
 
-_SPEC = importlib.util.spec_from_file_location(
-    "energy_benchmark", Path(__file__).resolve().parents[1] / "benchmarks" / "energy.py"
-)
-energy = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(energy)
+energy = benchmark_scripts.load("energy")
 
 # (shape, mass [kg], dt [s], integrator, throw): each gained 3e4-1e5 x the tolerance in one step
 # when the pure model was applied unguarded.

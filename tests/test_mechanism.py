@@ -12,6 +12,7 @@ from __future__ import annotations
 import ctypes
 from pathlib import Path
 
+import benchmark_scripts
 import mujoco
 import numpy as np
 import pytest
@@ -297,17 +298,6 @@ def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
     assert sum(d.count(lowspeed.STICK) for d in slow_dec) > 300  # bodies were held
 
 
-def _stance_benchmark():
-    """benchmarks/stance.py as a module (its light quadruped's MJCF)."""
-    import importlib.util
-
-    path = MODELS.parent / "benchmarks" / "stance.py"
-    spec = importlib.util.spec_from_file_location("stance_benchmark", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 #: The stance targets of a standing robot: torso drift [m] and step-to-step change of the total
 #: RFT vertical force [fraction of the weight] (docs/stability.md, "Mechanisms").
 STANCE_DRIFT_M, STANCE_FORCE_CHANGE = 1e-5, 0.01
@@ -321,7 +311,7 @@ def test_a_light_quadruped_on_soft_servos_holds(integrator, timestep, kp):
     """benchmarks/stance.py's 0.6 kg quadruped (15 g shins) settled 1 s, then standing 1 s: its
     hold system has a nearly null mode; solved exactly, two feet at a time were released every
     step and it crept by 0.5 mm a second with its load jumping between diagonal feet."""
-    stance = _stance_benchmark()
+    stance = benchmark_scripts.load("stance")  # its light quadruped's MJCF
     model = mjrft.load_model(stance.quadruped(kp, 0.015, timestep, integrator))
     data = mujoco.MjData(model)
     fld = GranularField(model)

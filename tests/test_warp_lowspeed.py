@@ -9,9 +9,6 @@ kernels (~30 s on one core; cached in ~/.cache/warp after).
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import mujoco
 import numpy as np
 import pytest
@@ -19,6 +16,7 @@ import pytest
 pytest.importorskip("warp")
 pytest.importorskip("mujoco_warp")
 
+import benchmark_scripts
 import mujoco_warp as mjw
 import warp as wp
 from warp_worlds import put, world_kinematics
@@ -51,17 +49,8 @@ ATOL_QPOS = 1e-8
 FOLLOW = {"hexapod": (1e-8, 1e-5), "quadruped": (2e-4, 1e-2)}
 
 
-def _benchmark(name: str):
-    """A script of benchmarks/ as a module."""
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(f"{name}_benchmark", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-energy = _benchmark("energy")
-gpu_benchmark = _benchmark("gpu")
+energy = benchmark_scripts.load("energy")
+gpu_benchmark = benchmark_scripts.load("gpu")
 
 
 def sphere(low_speed: str, integrator: str = "Euler"):
