@@ -425,28 +425,52 @@ bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, in
   return true;
 }
 
+f64 HoldPower(const Tables& t, const State& s, int a, const f64* out, f64 dt, f64* xf) {
+  int lda = 6 * t.ntbody;
+  for (int r = 0; r < 6; r++) {
+    f64 acc = 0.0;
+    for (int c = 0; c < 6; c++) acc += s.mech_A[lda * (6 * a + r) + 6 * a + c] * out[6 * a + c];
+    xf[r] = -dt * acc;
+  }
+  f64 hold = 0.0;
+  for (int r = 0; r < 6; r++) hold -= out[6 * a + r] * xf[r];
+  return hold;
+}
+
 int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
               const i64* code, const f64* out, f64* slip) {
-  int lda = 6 * t.ntbody;
   f64 dt = m->opt.timestep;
-  int worst = -1;
-  f64 margin = 0.0;
   f64 xf[6], r_w[6];
+  // 1. The hold that dissipates the most power is tested first: its shortfall bounds what the
+  //    others' can be (below).
+  int first = -1;
+  f64 most = 0.0;
   for (int a = 0; a < n; a++) {
     if (code[rows[a]] != kStick) continue;
-    for (int r = 0; r < 6; r++) {
-      f64 acc = 0.0;
-      for (int c = 0; c < 6; c++) acc += s.mech_A[lda * (6 * a + r) + 6 * a + c] * out[6 * a + c];
-      xf[r] = -dt * acc;
+    f64 hold = HoldPower(t, s, a, out, dt, xf);
+    if (hold > most) {
+      first = a;
+      most = hold;
     }
-    f64 hold = 0.0;
-    for (int r = 0; r < 6; r++) hold -= out[6 * a + r] * xf[r];  // power the hold dissipates
+  }
+  // 2. Then the others in order. A hold's shortfall is its power less the medium's, and the
+  //    medium's resistance dissipates (RFT media are dissipative; mjrft warns at load of a
+  //    material that is not, whose holds could then be released in another order), so a hold
+  //    whose power is no more than the largest shortfall found cannot fall shorter: its
+  //    resistance is not evaluated. Ties go to the lower index, as in a scan in index order.
+  int worst = -1;
+  f64 margin = 0.0;
+  for (int i = -1; i < n; i++) {
+    int a = i < 0 ? first : i;
+    if (a < 0 || (i >= 0 && a == first) || code[rows[a]] != kStick) continue;
+    f64 hold = HoldPower(t, s, a, out, dt, xf);
     if (!(hold > 0.0)) continue;  // the hold does nothing: nothing to supply
+    if (worst >= 0 && hold <= margin) continue;
     Resistance(m, d, t, s, rows[a], xf, r_w);
     f64 medium = 0.0;
     for (int r = 0; r < 6; r++) medium -= r_w[r] * xf[r];
     f64 short_by = hold - medium - kRounding * (hold + std::fabs(medium));
-    if (short_by > margin) {
+    if (short_by > margin || (worst >= 0 && short_by == margin && a < worst)) {
       worst = a;
       margin = short_by;
       for (int r = 0; r < 6; r++) slip[r] = r_w[r];

@@ -185,8 +185,15 @@ void Classify(const mjModel* m, const mjData* d, const Tables& t, State& s, cons
 bool SolveHolds(const mjModel* m, const Tables& t, State& s, const i64* rows, int n,
                 const i64* code, f64* out);
 
+// xf (6) = -dt A_aa W_a (W_a = out[a]): the twist held body a would take released alone.
+// Returns the power its hold dissipates, -W_a . xf.
+f64 HoldPower(const Tables& t, const State& s, int a, const f64* out, f64 dt, f64* xf);
+
 // Step 4: the held body whose hold the medium fails to supply by most, its slip wrench in
-// slip (6); -1 if every hold is supplied.
+// slip (6); -1 if every hold is supplied. The medium's resistance is evaluated for the hold of
+// most power and then only for holds whose power exceeds the largest shortfall found (no other
+// can fall shorter, the resistance being dissipative): a trotting robot's stance legs, which
+// fail their holds together, cost one resistance each, not one more per released leg.
 int WorstHold(const mjModel* m, const mjData* d, const Tables& t, State& s, const i64* rows, int n,
               const i64* code, const f64* out, f64* slip);
 

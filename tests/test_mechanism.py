@@ -233,24 +233,14 @@ def test_a_rig_stopped_mid_stroke_holds_still_with_its_load_cell_constant():
     assert np.ptp(z) < 1e-9 and np.abs(held[-1, 2]) > 1.0  # still, and loaded by the medium
 
 
-def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
-    """Six legs and the belly held by the medium, their hip servos nudged (within what the holds
-    supply, so that no body slips): from one settled state, the engine's pass (the plugin, in
-    mj_step) against field_reference.mechanism_wrenches (MuJoCo's mj_fullM and mj_jacBodyCom,
-    dense solves, the actuator rule written plainly) as MuJoCo's passive callback on the same
-    model compiled without the plugin, states and decisions.
-
-    From the settled state on, not from the fall into the sand: a slipping body's wrench is the
-    medium's force at a direction computed in two orders of operations, and one triangle on the
-    leading/trailing boundary can flip between them (a 3 mN jump on a 1 N leg)."""
+def reference_twin(model, data, fld, plain):
+    """(twin, reference): an MjData of plain (the model compiled without the plugin) in data's
+    state, and a field_reference.ReferenceField that continues data's treatment on it. Besides
+    the state, the twin takes the last step's qacc and actuator_force, which both treatments
+    read at the next step's first pass, and the reference the engine's held bodies, their
+    wrenches and the time of its last pass."""
     import field_reference as ref
 
-    model, data, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
-    for _ in range(1500):
-        mujoco.mj_step(model, data)
-    # The twin: the same state on the model without the plugin. Besides the state, the last
-    # step's qacc and actuator_force, which both treatments read at the next step's first pass.
-    plain = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
     plain.opt.integrator, plain.opt.timestep = model.opt.integrator, model.opt.timestep
     twin = mujoco.MjData(plain)
     spec = int(mujoco.mjtState.mjSTATE_INTEGRATION) & ~int(mujoco.mjtState.mjSTATE_PLUGIN)
@@ -261,41 +251,105 @@ def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
     rows, nk = fld.body_ids, len(fld.body_ids)
     held = fld.state_array(data, "mech_held").astype(bool)
     prev = fld.state_array(data, "mech_prev").reshape(nk, 6)
-    last_pass = float(fld.state_array(data, "mech_time")[0])
     reference = ref.ReferenceField(fld)
     reference.state[twin._address] = {
         "user": np.zeros((nk, 6)), "written": np.array(data.xfrc_applied[rows]),
-        "record": [0.0, 0.0], "modes": {}, "mech_time": last_pass,
+        "record": [0.0, 0.0], "modes": {},
+        "mech_time": float(fld.state_array(data, "mech_time")[0]),
         "mech_tau": fld.state_array(data, "mech_tau").copy(),
         "mech_held": {k: True for k in range(nk) if held[k]},
         "mech_prev": {k: prev[k].copy() for k in range(nk) if held[k]},
     }  # fmt: skip
+    return twin, reference
 
-    STEPS = 200  # the reference takes ~0.25 s a step here; 140 steps follow the nudge
+
+def follow_reference(model, data, fld, plain, steps: int, drive):
+    """(engine, reference): qpos and qvel (steps, nq + nv) and each step's decisions of the
+    engine continuing data, and of field_reference.ReferenceField (MuJoCo's passive callback)
+    continuing its twin on plain (reference_twin); drive(d, i) acts on either before step i."""
+    twin, reference = reference_twin(model, data, fld, plain)
+    out = {}
+    for name, m, d in (("engine", model, data), ("reference", plain, twin)):
+        if name == "reference":
+            mujoco.set_mjcb_passive(reference.apply)
+        states, decisions = [], []
+        try:
+            for i in range(steps):
+                drive(d, i)
+                mujoco.mj_step(m, d)
+                states.append(np.concatenate([d.qpos, d.qvel]))
+                dec = reference.decisions if name == "reference" else fld.decision_of(d)
+                decisions.append(list(map(int, dec)))
+        finally:
+            mujoco.set_mjcb_passive(None)
+        out[name] = (np.array(states), decisions)
+    return out["engine"], out["reference"]
+
+
+def test_the_engine_follows_the_plain_reference_on_the_standing_hexapod():
+    """Six legs and the belly held by the medium, their hip servos nudged (within what the holds
+    supply, so that no body slips): from one settled state, the engine's pass (the plugin, in
+    mj_step) against field_reference.mechanism_wrenches (MuJoCo's mj_fullM and mj_jacBodyCom,
+    dense solves, the actuator rule written plainly) as MuJoCo's passive callback on the same
+    model compiled without the plugin, states and decisions.
+
+    From the settled state on, not from the fall into the sand: a slipping body's wrench is the
+    medium's force at a direction computed in two orders of operations, and one triangle on the
+    leading/trailing boundary can flip between them (a 3 mN jump on a 1 N leg)."""
+    model, data, fld = standing_hexapod(mujoco.mjtIntegrator.mjINT_EULER, 1e-3, "stick")
+    for _ in range(1500):
+        mujoco.mj_step(model, data)
+    plain = mujoco.MjModel.from_xml_path(str(MODELS / "hexapod_sand.xml"))
 
     def nudged(d, i):
         if i == 60:
             d.act[:] += 1e-4  # every hip's setpoint moves by 0.1 mrad: the holds follow
 
-    fast, fast_dec = [], []
-    for i in range(STEPS):
-        nudged(data, i)
-        mujoco.mj_step(model, data)
-        fast.append(np.concatenate([data.qpos, data.qvel]))
-        fast_dec.append(list(map(int, fld.decision_of(data))))
-    slow, slow_dec = [], []
-    mujoco.set_mjcb_passive(reference.apply)
-    try:
-        for i in range(STEPS):
-            nudged(twin, i)
-            mujoco.mj_step(plain, twin)
-            slow.append(np.concatenate([twin.qpos, twin.qvel]))
-            slow_dec.append(list(reference.decisions))
-    finally:
-        mujoco.set_mjcb_passive(None)
-    np.testing.assert_allclose(np.array(fast), np.array(slow), rtol=1e-6, atol=1e-12)
+    # the reference takes ~0.25 s a step here; 140 steps follow the nudge
+    (fast, fast_dec), (slow, slow_dec) = follow_reference(model, data, fld, plain, 200, nudged)
+    np.testing.assert_allclose(fast, slow, rtol=1e-6, atol=1e-12)
     assert fast_dec == slow_dec
     assert sum(d.count(lowspeed.STICK) for d in slow_dec) > 300  # bodies were held
+
+
+def test_the_engine_releases_the_holds_the_reference_releases_on_a_trotting_quadruped():
+    """The Go2 trotting: its stance legs fail their holds together, and the engine evaluates
+    the medium's resistance only for holds that could fall shortest (engine/mechanism.h,
+    WorstHold). The plain reference evaluates every one and releases the worst, then solves the
+    others again: the same legs slip, in the same order (the second leg's release direction,
+    and so its wrench, depends on which went first)."""
+    from envs import go2_sand
+
+    model = mjrft.load_model(MODELS / "go2_sand.xml")
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    fld = GranularField(model)
+
+    def trot(d, i):
+        d.ctrl[:] = go2_sand.trot_ctrl(d.time)
+
+    for i in range(TROT_SETTLE):
+        trot(data, i)
+        mujoco.mj_step(model, data)
+    spec = go2_sand.build_spec()
+    for sensor in list(spec.sensors):  # the engine's sensors go with it
+        if sensor.type == mujoco.mjtSensor.mjSENS_PLUGIN:
+            spec.delete(sensor)
+    for plugin in list(spec.plugins):
+        spec.delete(plugin)
+    (fast, fast_dec), (slow, slow_dec) = follow_reference(
+        model, data, fld, spec.compile(), TROT_STEPS, trot
+    )
+    assert fast_dec == slow_dec
+    assert sum(d.count(lowspeed.SLIP) >= 2 for d in slow_dec) > TROT_STEPS // 2  # legs together
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=TROT_ATOL)
+
+
+#: The trotting Go2 against the reference: TROT_STEPS steps (the reference takes ~0.1 s a step)
+#: after TROT_SETTLE of the trot from the home keyframe (2 ms steps); states within TROT_ATOL (a
+#: slipping leg's wrench can differ by one element turning leading between the two orders of
+#: operations; a leg released in another order moves its foot by ~1e-4 m in a step).
+TROT_SETTLE, TROT_STEPS, TROT_ATOL = 300, 30, 1e-6
 
 
 #: The stance targets of a standing robot: torso drift [m] and step-to-step change of the total

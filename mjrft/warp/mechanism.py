@@ -519,35 +519,60 @@ def resistance(el: Elements, medium: Medium, cull: wp.array2d(dtype=int), mc: Me
 
 
 @wp.func
+def hold_power(mc: Mech, w: int, a: int, dt: f64):
+    """(power the hold of held row a dissipates, xf = -dt A_aa W_a: the twist it would take
+    released alone) (engine HoldPower)."""
+    lda = 6 * mc.nk
+    xf = vec6d()
+    for r in range(6):
+        acc = _Z
+        for c in range(6):
+            acc += mc.a[w, lda * (6 * a + r) + 6 * a + c] * mc.out[w, 6 * a + c]
+        xf[r] = -dt * acc
+    hold = _Z
+    for r in range(6):
+        hold -= mc.out[w, 6 * a + r] * xf[r]
+    return hold, xf
+
+
+@wp.func
 def worst_hold(el: Elements, medium: Medium, cull: wp.array2d(dtype=int), mc: Mech, kin: Kin,
                tbody_bodyid: wp.array(dtype=int), tbody_rootid: wp.array(dtype=int),
                force: wp.array2d(dtype=vec3d), torque: wp.array2d(dtype=vec3d),
                code: wp.array2d(dtype=int), w: int, n: int, dt: f64):  # fmt: skip
     """(row of the held body the medium fails to supply by most or -1, its slip wrench)
-    (engine WorstHold)."""
-    lda = 6 * mc.nk
+    (engine WorstHold: the hold of most power first, then only holds whose power exceeds the
+    largest shortfall found)."""
+    first = int(-1)
+    most = _Z
+    for a in range(n):
+        if code[w, mc.rows[w, a]] != ls.STICK:
+            continue
+        hold, xf = hold_power(mc, w, a, dt)
+        if hold > most:
+            first = a
+            most = hold
     worst = int(-1)
     margin = _Z
     slip = vec6d()
-    for a in range(n):
+    for i in range(-1, n):
+        a = i
+        if i < 0:
+            a = first
+        if a < 0 or (i >= 0 and a == first):
+            continue
         k = mc.rows[w, a]
         if code[w, k] != ls.STICK:
             continue
-        xf = vec6d()
-        for r in range(6):
-            acc = _Z
-            for c in range(6):
-                acc += mc.a[w, lda * (6 * a + r) + 6 * a + c] * mc.out[w, 6 * a + c]
-            xf[r] = -dt * acc
-        hold = _Z
-        for r in range(6):
-            hold -= mc.out[w, 6 * a + r] * xf[r]
+        hold, xf = hold_power(mc, w, a, dt)
         if not (hold > _Z):
             continue
+        if worst >= 0 and hold <= margin:
+            continue  # no shorter than the worst found: the resistance dissipates
         r_w = resistance(el, medium, cull, mc, kin, w, k, tbody_bodyid[k], xf)
         med = -wp.dot(r_w, xf)
         short_by = hold - med - ls.ROUNDING * (hold + wp.abs(med))
-        if short_by > margin:
+        if short_by > margin or (worst >= 0 and short_by == margin and a < worst):
             worst = a
             margin = short_by
             slip = r_w
