@@ -42,17 +42,19 @@ MJRFT_API void mjrft_input_flags(const f64* pos, const f64* normal, const f64* a
 // elements' arrays cent, norm (n, 3), area, reach (n,), patch (n, 19), body frame); the medium
 // spelled out (coef (ncoef,), alpha_y, zeta, surface_prm (13,), surface_grid, use_region,
 // region (2, 3), soil); rot (3, 3), pos, omega, v_ref, p_ref, com (3,); elem_force (n, 3); rows
-// NULL or (n, 10). Returns #acting.
+// NULL or (n, 11) (kernel::kRow); body k + 1 for tagged body k of a deforming ground's field (its
+// press marks, surface::SoilDepth), 0 for none. Returns #acting.
 MJRFT_API int mjrft_body_wrench(const f64* cent, const f64* norm, const f64* area, const f64* reach,
                                 const f64* patch, i64 start, i64 stop, const f64* coef, i64 ncoef,
                                 f64 alpha_y, f64 zeta, const f64* surface_prm,
                                 const f64* surface_grid, int use_region, const f64* region,
                                 const f64* soil, const f64* rot, const f64* pos, const f64* omega,
                                 const f64* v_ref, const f64* p_ref, const f64* com, f64* wrench,
-                                f64* elem_force, f64* rows) {
+                                f64* elem_force, f64* rows, f64 body) {
   const kernel::Elements e = {cent, norm, area, reach, patch};
-  const kernel::Medium med = {coef,        ncoef,        alpha_y,         zeta,
-                              surface_prm, surface_grid, use_region != 0, region};
+  kernel::Medium med = {coef,        ncoef,        alpha_y,         zeta,
+                        surface_prm, surface_grid, use_region != 0, region};
+  med.body = body;
   return kernel::BodyWrench(e, start, stop, med, soil, rot, pos, omega, v_ref, p_ref, com, wrench,
                             elem_force, rows);
 }

@@ -22,8 +22,9 @@ MJRFT_API void mjrft_surface_heights(const f64* prm, const f64* grid, const f64*
 }
 
 // surface_depths: out (n,) resisting depths [m] of the world points (x[i], y[i], z[i]) [m]
-// (<= 0 outside the medium).
+// (<= 0 outside the medium); body k + 1 for points of tagged body k (its press marks on a
+// deforming ground, surface::SoilDepth), 0 for none.
 MJRFT_API void mjrft_surface_depths(const f64* prm, const f64* grid, const f64* soil, const f64* x,
-                                    const f64* y, const f64* z, i64 n, f64* out) {
-  for (i64 i = 0; i < n; i++) out[i] = surface::Depth(prm, grid, soil, x[i], y[i], z[i]);
+                                    const f64* y, const f64* z, i64 n, f64 body, f64* out) {
+  for (i64 i = 0; i < n; i++) out[i] = surface::Depth(prm, grid, soil, x[i], y[i], z[i], body);
 }

@@ -175,7 +175,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       buf[law::kPx][k] = px;
       buf[law::kPx + 1][k] = py;
       buf[law::kPx + 2][k] = pz;
-      if (dyn) buf[law::kArea][k] = e.area[i];
+      buf[law::kArea][k] = e.area[i];
       k = law::Gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, e.area[i], true);
     }
     quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm, med.surface_grid,
@@ -204,6 +204,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
           row[6 + c] = buf[law::kWx + c][j];
         }
         row[9] = buf[law::kDepthArea][j];
+        row[10] = buf[law::kArea][j];
       }
       count += k;
       continue;

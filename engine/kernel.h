@@ -16,8 +16,9 @@ namespace mjrft::kernel {
 
 // Rows of the quadrature points written instead of forces (for media given as Python
 // callables): point [m] (3), unit normal (3), velocity direction (3), weight W = depth x area
-// [m^3] (1), world frame.
-constexpr int kRow = 10;
+// [m^3] (1), area [m^2] (1) of the part that acts (the element's, or where the quadrature clips
+// it its submerged leading part's), world frame.
+constexpr int kRow = 11;
 
 // Elements of one body, body frame (rows of Tables' elem_* arrays, or of an ElementSet).
 struct Elements {

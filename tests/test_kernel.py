@@ -168,6 +168,10 @@ def test_body_wrench_rows_give_the_evaluated_wrench():
         cent, norm, area, reach, patch, *medium, None, None, *motion, rows
     )
     assert written >= acting and not np.any(w0) and not np.any(f0)
+    # The acting part's area: the element's, or less where the quadrature clipped it.
+    on = rows[:, 9] > 0.0
+    assert np.all(rows[on, 10] > 0.0) and np.all(rows[on, 10] <= area[on])
+    assert np.any(rows[on, 10] < area[on]) and np.any(rows[on, 10] == area[on])
     f = quadrature_forces(rows, GLASS)
     torque = np.cross(rows[:, :3] - motion[5], f).sum(axis=0)
     scale = np.abs(wrench).max()
@@ -214,7 +218,7 @@ def test_the_bindings_name_what_does_not_fit():
                            *motion)  # fmt: skip
     with pytest.raises(ValueError, match=r"elements 3..2 are not within the \d+ given"):
         engine.body_wrench(*args, flat.prm, flat.grid, None, None, *motion, start=3, stop=2)
-    with pytest.raises(ValueError, match=rf"rows has shape \(2, 10\), expected \({n}, 10\)"):
+    with pytest.raises(ValueError, match=rf"rows has shape \(2, 10\), expected \({n}, 11\)"):
         engine.body_wrench(*args, flat.prm, flat.grid, None, None, *motion, np.zeros((2, 10)))
     with pytest.raises(ValueError, match=r"region has shape \(6,\), expected \(2, 3\)"):
         engine.body_wrench(*args, flat.prm, flat.grid, np.zeros(6), None, *motion)

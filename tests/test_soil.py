@@ -387,6 +387,26 @@ def test_a_dragged_blade_meets_a_steady_drag():
     assert drags.mean() > 1.5 * -f0.wrench_of(d0)[1, 0]
 
 
+def test_element_states_beside_the_blade_report_finite_positive_areas():
+    """A blade 2.5 cm deep dragged through deforming ground: its clipped elements' reported
+    areas (the area that gives each part's depth integral at its point's depth) use the depth
+    the pass used, beside the blade's press marks, and are finite and positive wherever the
+    point lies at or above the berm's surface (there the part's own area). Without the press
+    marks in the look-up, the blade's side elements read a depth of zero or less: negative
+    areas on elements carrying 0.04 N."""
+    m, f, d = load(BLADE.replace('pos="0 0 0">', 'pos="0 0 -0.015">'))
+    d.ctrl[0] = 0.1  # [m/s]
+    clipped = 0
+    for i in range(600):
+        mujoco.mj_step(m, d)
+        if i % 20:
+            continue
+        (st,) = f.element_states(d)
+        assert np.all(np.isfinite(st.area)) and np.all(st.area > 0.0)
+        clipped += int((st.area != f.bodies[0].areas[st.index]).sum())
+    assert clipped > 100  # the quadrature clipped elements at the surface and the front
+
+
 def test_a_recording_shows_the_ground_as_it_deforms(tmp_path):
     """The rerun recording's world/surface mesh follows the deforming ground (decimated, every
     viz.GROUND_EVERY_FRAMES frames): the blade's trench and pile as they grow."""

@@ -139,14 +139,14 @@ def _declare(lib: ctypes.CDLL) -> None:
     lib.mjrft_input_flags.argtypes = [p, p, p, p, n, ctypes.POINTER(i), ctypes.POINTER(i)]
     lib.mjrft_input_flags.restype = None
     lib.mjrft_body_wrench.argtypes = [p, p, p, p, p, n, n, p, n, f, f, p, p, i, p, p,
-                                      p, p, p, p, p, p, p, p, p]  # fmt: skip
+                                      p, p, p, p, p, p, p, p, p, f]  # fmt: skip
     lib.mjrft_body_wrench.restype = i
     lib.mjrft_trajectory.argtypes = [p, p, p, p, p, n, p, n, f, f, f, p, p, p, p, p, n, p]
     lib.mjrft_trajectory.restype = None
     # engine/capi_surface.cc
     lib.mjrft_surface_heights.argtypes = [p, p, p, p, p, n, p]
     lib.mjrft_surface_heights.restype = None
-    lib.mjrft_surface_depths.argtypes = [p, p, p, p, p, p, n, p]
+    lib.mjrft_surface_depths.argtypes = [p, p, p, p, p, p, n, f, p]
     lib.mjrft_surface_depths.restype = None
 
 
@@ -175,8 +175,10 @@ def layout() -> Layout:
 
 # ---------------------------------------------------------------------------- the RFT kernel
 #: Columns of ``body_wrench``'s quadrature rows (kernel::kRow): point [m] (3), unit normal (3),
-#: velocity direction (3, any scale), weight W = depth x area [m^3] (1); world frame.
-ROW = 10
+#: velocity direction (3, any scale), weight W = depth x area [m^3] (1), area [m^2] (1) of the
+#: part that acts (the element's, or its submerged leading part where the quadrature clips it);
+#: world frame.
+ROW = 11
 #: Codes of ``checked_unit_normals`` (kernel::InputCode): which input of an element is bad.
 INPUT_OK, BAD_POS, BAD_NORMAL, BAD_AREA, BAD_VEL, NEGATIVE_AREA, ZERO_NORMAL = range(7)
 #: A normal counts as unit if | |n|^2 - 1 | is below this (kernel::kUnitNormalSlack: a few ulp,
@@ -365,16 +367,21 @@ def surface_heights(prm, grid, soil, x, y, out: np.ndarray | None = None) -> np.
     return res
 
 
-def surface_depths(prm, grid, soil, x, y, z, out: np.ndarray | None = None) -> np.ndarray:
+def surface_depths(
+    prm, grid, soil, x, y, z, out: np.ndarray | None = None, *, body: int = 0
+) -> np.ndarray:
     """Resisting depths [m] (<= 0 outside the medium) of the world points (x, y, z) [m]
-    (broadcast to one shape) under the surface (prm, grid, soil), as ``surface_heights``."""
+    (broadcast to one shape) under the surface (prm, grid, soil), as ``surface_heights``.
+    body: k + 1 for points of a field's tagged body k, whose press marks on a deforming ground
+    set the depth beside it (engine/surface.h, SoilDepth); 0 for none."""
     who = "surface_depths"
     prm, grid, soil = _surface(who, prm, grid, soil)
     shape, (xs, ys, zs) = _points(who, {"x": x, "y": y, "z": z})
     res = _out(who, "out", out, shape)
     library().mjrft_surface_depths(
-        _ptr(prm), _ptr(grid), _ptr(soil), _ptr(xs), _ptr(ys), _ptr(zs), xs.shape[0], _ptr(res)
-    )
+        _ptr(prm), _ptr(grid), _ptr(soil), _ptr(xs), _ptr(ys), _ptr(zs), xs.shape[0],
+        float(body), _ptr(res),
+    )  # fmt: skip
     return res
 
 
@@ -388,6 +395,7 @@ def body_wrench(
     *,
     start: int = 0,
     stop: int | None = None,
+    body: int = 0,
 ) -> tuple[np.ndarray, np.ndarray, int]:  # fmt: skip
     """RFT wrench on a body's elements start..stop (default all), with the kernel's surface
     quadrature (mjrft.core.quadrature).
@@ -407,6 +415,8 @@ def body_wrench(
       rows: None, or a writable C-contiguous float64 array (n, ROW): the quadrature points of
         the acting elements are written there instead of evaluated (for media given by Python
         callables: ``mjrft.core.rft.quadrature_forces``), rows of the others left as they are.
+      body: k + 1 if these are the elements of a field's tagged body k (its press marks on a
+        deforming ground, ``surface_depths``), 0 for none.
     Returns:
       (wrench (6,): force [N] then torque [N m] about com, world frame; elem_force (n, 3) [N],
       zero outside start..stop and where nothing acts; acting: elements with a force, or with
@@ -434,7 +444,7 @@ def body_wrench(
         _ptr(cent), _ptr(norm), _ptr(area), _ptr(reach), _ptr(patch), start, stop, _ptr(co),
         co.shape[0], float(alpha_y), float(zeta), _ptr(prm), _ptr(grid), int(use_region),
         _ptr(box), _ptr(soil), *(_ptr(a) for a in motion), _ptr(wrench), _ptr(elem_force),
-        None if rws is None else _ptr(rws),
+        None if rws is None else _ptr(rws), float(body),
     )  # fmt: skip
     return wrench, elem_force, acting
 
@@ -459,7 +469,7 @@ def quadrature_rows(be, tables: dict, soil, rot, pos, omega, v_ref, p_ref, com) 
         t["elem_patch"][b], t["coef"], t["alpha_y"], t["zeta"], t["surface_prm"],
         np.reshape(t["surface_grid"], (t["surface_nrow"], t["surface_ncol"])),
         np.reshape(t["region"], (2, 3)) if t["use_region"] else None,
-        np.reshape(soil, -1)[:nsoil], rot, pos, omega, v_ref, p_ref, com, rows,
+        np.reshape(soil, -1)[:nsoil], rot, pos, omega, v_ref, p_ref, com, rows, body=k + 1,
     )  # fmt: skip
     return rows
 

@@ -81,11 +81,13 @@ def height(prm: np.ndarray, grid: np.ndarray, soil: np.ndarray | None, x, y):
     return float(out) if out.ndim == 0 else out
 
 
-def depth(prm: np.ndarray, grid: np.ndarray, soil: np.ndarray | None, x, y, z):
+def depth(prm: np.ndarray, grid: np.ndarray, soil: np.ndarray | None, x, y, z, body: int = 0):
     """Resisting depth [m] of the world points (x, y, z) [m] (broadcast to one shape): vertical
     distance below the surface (and, under a SOIL surface, the memory of its compacted part);
-    <= 0 outside the medium. An array of that shape, a float for scalars; soil as ``height``."""
-    out = engine.surface_depths(prm, grid, soil, x, y, z)
+    <= 0 outside the medium. An array of that shape, a float for scalars; soil as ``height``.
+    body: k + 1 for points of a field's tagged body k (beside its press marks a SOIL surface
+    stands at the free material's height, engine/surface.h), 0 for none."""
+    out = engine.surface_depths(prm, grid, soil, x, y, z, body=body)
     return float(out) if out.ndim == 0 else out
 
 

@@ -52,9 +52,11 @@ class ElementState:
       pos: (n, 3) quadrature points [m]: the centroid, or for an element the free surface or
         the leading boundary crosses, its submerged leading part's depth-weighted centroid
         (mjrft.core.quadrature); normal: (n, 3) unit normals there; area: (n,) [m^2], for a
-        clipped element the area that gives its part's depth integral at that point's depth;
-        vel: (n, 3) velocities there [m/s]; force: (n, 3) RFT forces [N], the element law at
-        (pos, normal, area, vel) (``mjrft.element_forces``).
+        clipped element the area that gives its part's depth integral at that point's depth
+        (on an uneven surface, where the point lies at or above the surface there, the part's
+        own area); vel: (n, 3) velocities there [m/s]; force: (n, 3) RFT forces [N], the
+        element law at (pos, normal, area, vel) (under a flat surface ``mjrft.element_forces``
+        of these).
     """
 
     body: int
@@ -349,13 +351,14 @@ class GranularField:
             if not blocks:
                 continue
             out.append(
-                self._element_state(probe, be, np.concatenate(blocks), elem_force[first:], soil)
+                self._element_state(probe, k, np.concatenate(blocks), elem_force[first:], soil)
             )
         return out
 
-    def _element_state(self, data, be: BodyElements, idx, elem_force, soil) -> ElementState:
+    def _element_state(self, data, k: int, idx, elem_force, soil) -> ElementState:
         from mjrft.core import engine
 
+        be = self.bodies[k]
         b = be.body
         rot = data.xmat[b].reshape(3, 3)
         pos = be.centroids[idx] @ rot.T + data.xpos[b]
@@ -371,13 +374,18 @@ class GranularField:
             be, t, soil, rot, data.xpos[b], omega, v_ref, p_ref, data.xipos[b]
         )[idx]
         # A clipped element acts at its submerged leading part's depth-weighted centroid, with
-        # the area that gives that part's depth integral W at that point's depth.
+        # the area that gives that part's depth integral W at that point's depth (as the pass
+        # looks it up, the body's press marks included). On an uneven surface the point can lie
+        # at or above the surface there while the part's corners are below it: then no area
+        # does, and the part's own area stands.
         moved = (rows[:, 9] > 0.0) & np.any(rows[:, :3] != pos, axis=1)
         ground = self.scene.surface
         j = np.flatnonzero(moved)
         if j.size:  # one call of the engine for all of them
-            depth = surface.depth(ground.prm, ground.grid, soil, *rows[j, :3].T)
-            pos[j], normal[j], area[j] = rows[j, :3], rows[j, 3:6], rows[j, 9] / depth
+            depth = surface.depth(ground.prm, ground.grid, soil, *rows[j, :3].T, body=k + 1)
+            below = depth > 0.0
+            pos[j], normal[j] = rows[j, :3], rows[j, 3:6]
+            area[j] = np.where(below, rows[j, 9] / np.where(below, depth, 1.0), rows[j, 10])
         vel = v_ref + np.cross(omega, pos - p_ref)
         return ElementState(b, idx, pos, normal, area, vel, elem_force[idx].copy())
 
