@@ -54,12 +54,7 @@ def sand(triangles: int | None) -> mujoco.MjModel:
 
 def floor() -> mujoco.MjModel:
     """The same robot without the field, on a plane at z = 0 with MuJoCo's contacts."""
-    spec = go2_sand.build_spec()
-    for sensor in list(spec.sensors):  # the field's sensors go with it
-        if sensor.type == mujoco.mjtSensor.mjSENS_PLUGIN:
-            spec.delete(sensor)
-    for p in list(spec.plugins):
-        spec.delete(p)
+    spec = go2_sand.plain_spec()
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[5.0, 5.0, 0.1])
     return spec.compile()
 

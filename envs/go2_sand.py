@@ -208,6 +208,18 @@ def build_spec() -> mujoco.MjSpec:
     return mujoco.MjSpec.from_file(str(models_dir() / "go2_sand.xml"))
 
 
+def plain_spec() -> mujoco.MjSpec:
+    """The quadruped for MuJoCo alone: ``build_spec`` without mjrft's sensors and plugin
+    declarations (no RFT; a floor, if wanted, is the caller's)."""
+    spec = build_spec()
+    for sensor in list(spec.sensors):
+        if sensor.type == mujoco.mjtSensor.mjSENS_PLUGIN:
+            spec.delete(sensor)
+    for plugin in list(spec.plugins):
+        spec.delete(plugin)
+    return spec
+
+
 def make(
     *,
     random: Any = None,
