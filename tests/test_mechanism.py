@@ -318,7 +318,7 @@ def test_the_engine_releases_the_holds_the_reference_releases_on_a_trotting_quad
     WorstHold). The plain reference evaluates every one and releases the worst, then solves the
     others again: the same legs slip, in the same order (the second leg's release direction,
     and so its wrench, depends on which went first)."""
-    from envs import go2_sand
+    from mjrft.envs import go2_sand
 
     model = mjrft.load_model(MODELS / "go2_sand.xml")
     data = mujoco.MjData(model)

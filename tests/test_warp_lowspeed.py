@@ -287,7 +287,7 @@ def test_the_trotting_go2_releases_the_engines_holds():
     hold of most power first and evaluate the others' resistance only where it could fall
     shorter (engine/mechanism.h, WorstHold); releasing another leg first changes which legs
     are held at the next steps."""
-    from envs import go2_sand
+    from mjrft.envs import go2_sand
 
     cpu_model = mjrft.load_model(go2_sand.build_spec())
     plain = go2_sand.plain_spec().compile()
