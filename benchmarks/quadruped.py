@@ -5,6 +5,8 @@ Run: python benchmarks/quadruped.py [--duration 3] [--repeats 5] [--triangles N 
      python benchmarks/quadruped.py --zeta-table    (docs/choosing_zeta.md's table: prints it)
      python benchmarks/quadruped.py --force-models  (docs/models.md: each force model's stance
                                                      depth and trot)
+     python benchmarks/quadruped.py --thighs        (docs/environments.md: the trot with the
+                                                     thighs tagged too)
 
 Cost: for standing (home ctrl held) and trotting (``mjrft.envs.go2_sand.trot_ctrl``), steps the
 robot for --duration s on the medium (the engine plugin, ``mjrft.load_model``; the model's own
@@ -164,6 +166,33 @@ def force_models() -> None:
               f"trot: {data.qpos[0] - x0:.2f} m in 6 s, tilt <= {tilt:.1f} deg")  # fmt: skip
 
 
+def thighs() -> None:
+    """The trot (6 s from the home keyframe) with the calves' subtrees tagged, as the model is,
+    and with the thighs' subtrees tagged as well (their boxes at the model's 100 triangles):
+    how deep the thighs' boxes reach into the medium, the walk, the tilt and the triangles."""
+    for tag in (False, True):
+        spec = go2_sand.build_spec()
+        if tag:
+            (names,) = [x for x in spec.texts if x.name == "mjrft:intruders_subtree"]
+            names.data = " ".join(f"{leg}_thigh" for leg in go2_sand.LEGS)
+        model = mjrft.load_model(spec, watch_sinking=False)
+        data = start(model, False)
+        boxes = [model.geom(f"{leg}_thigh").id for leg in go2_sand.LEGS]
+        x0, lowest_up, deepest = data.qpos[0], 1.0, 0.0
+        for _ in range(round(6.0 / model.opt.timestep)):
+            data.ctrl[:] = go2_sand.trot_ctrl(data.time)
+            mujoco.mj_step(model, data)
+            lowest_up = min(lowest_up, data.xmat[1][8])
+            for g in boxes:  # the box's lowest corner below the surface at z = 0
+                low = data.geom_xpos[g, 2] - np.abs(data.geom_xmat[g, 6:9]) @ model.geom_size[g]
+                deepest = max(deepest, -float(low))
+        tilt = math.degrees(math.acos(min(1.0, lowest_up)))
+        case = "thighs tagged" if tag else "calves tagged"
+        triangles = sum(len(b.areas) for b in mjrft.GranularField(model).bodies)
+        print(f"{case:14} {triangles} triangles; thighs reach {100 * deepest:.1f} cm deep; trot: "
+              f"{data.qpos[0] - x0:.3f} m in 6 s, tilt <= {tilt:.1f} deg")  # fmt: skip
+
+
 def keyframe() -> None:
     model = sand(None)
     data = set_down(model)
@@ -217,6 +246,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--zeta-table", action="store_true", help="print docs/choosing_zeta.md's table")
     p.add_argument("--force-models", action="store_true",
                    help="set down and trot under each force model (docs/models.md)")  # fmt: skip
+    p.add_argument("--thighs", action="store_true",
+                   help="the trot with the thighs tagged too (docs/environments.md)")  # fmt: skip
     args = p.parse_args(argv)
     if args.keyframe:
         return keyframe()
@@ -224,6 +255,8 @@ def main(argv: list[str] | None = None) -> None:
         return zeta_table()
     if args.force_models:
         return force_models()
+    if args.thighs:
+        return thighs()
     rows = cost(args.duration, args.repeats, args.triangles)
     cpu = metadata.machine()["cpu"] or platform.machine()
     print(f"{cpu}; mujoco {mujoco.__version__}; {args.duration} s per run, {args.repeats} repeats")
