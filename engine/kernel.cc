@@ -175,7 +175,7 @@ int BodyWrench(const Elements& e, i64 start, i64 stop, const Medium& med, const 
       buf[law::kPx][k] = px;
       buf[law::kPx + 1][k] = py;
       buf[law::kPx + 2][k] = pz;
-      buf[law::kArea][k] = e.area[i];
+      if (dyn || rows) buf[law::kArea][k] = e.area[i];  // read by the dynamic term and the rows
       k = law::Gather(buf, idx, k, i, nx, ny, nz, vx, vy, vz, depth, e.area[i], true);
     }
     quadrature::CornerValues(e.patch, cf, later, held, nl, rot, ang_b, lin_b, prm, med.surface_grid,
